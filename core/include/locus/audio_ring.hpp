@@ -1,0 +1,243 @@
+// Lock-free single-producer/single-consumer ring of interleaved multi-channel float audio frames.
+//
+// Why this shape: the audio callback (producer) must never block, allocate or lose data silently, and
+// every detector downstream needs the exact sample clock of each frame it sees. So:
+//  - capacity is a power of two fixed at construction; indices are free-running 64-bit counters;
+//  - reads and writes hand out zero-copy spans of at most two contiguous segments (the wrap point);
+//  - producer and consumer state live on separate cache lines, each caching the other's index so the
+//    shared line is touched only when the cache says "full"/"empty"; acquire/release atomics only;
+//  - when the producer cannot place frames (ring full), it reports them with `write_lost`: the stream
+//    clock still advances, an overrun is counted, and the consumer is told, at the exact position in
+//    the stream, how many frames it lost (`ReadSpan::lost_before`). Stream frame numbers (the sample
+//    clock) therefore stay exact across overruns.
+//
+// Threading: one producer thread calls the [RT, producer] methods, one consumer thread calls the
+// [RT, consumer] methods; [any] methods may be called from anywhere.
+#pragma once
+
+#include <algorithm>
+#include <atomic>
+#include <bit>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <memory>
+#include <new>
+#include <stdexcept>
+
+#include "locus/spsc_queue.hpp"
+
+namespace locus {
+
+class AudioRing {
+ public:
+  /// A contiguous run of interleaved frames inside the ring.
+  struct Segment {
+    float* data = nullptr;
+    std::size_t frames = 0;
+  };
+
+  /// Free space handed to the producer: fill `first` then `second`, then `write_commit`.
+  struct WriteSpan {
+    Segment first, second;
+    std::size_t frames() const noexcept { return first.frames + second.frames; }
+  };
+
+  /// Frames handed to the consumer: read `first` then `second`, then `read_release`.
+  struct ReadSpan {
+    Segment first, second;
+    /// Stream frame number (sample clock) of the first frame of `first`.
+    std::uint64_t first_frame = 0;
+    /// Frames lost to an overrun immediately before `first_frame` (0 when the stream is contiguous).
+    std::uint64_t lost_before = 0;
+    std::size_t frames() const noexcept { return first.frames + second.frames; }
+  };
+
+  /// [main] `channels` >= 1; capacity rounded up to a power of two frames; `max_pending_gaps` bounds
+  /// how many distinct overrun episodes can await the consumer (more are merged, never dropped);
+  /// `start_frame` is the stream frame number of the first frame that will be written.
+  AudioRing(std::uint32_t channels, std::size_t min_capacity_frames, std::size_t max_pending_gaps = 64,
+            std::uint64_t start_frame = 0)
+      : channels_(channels),
+        capacity_(std::bit_ceil(std::max<std::size_t>(min_capacity_frames, 2))),
+        mask_(capacity_ - 1),
+        gaps_(max_pending_gaps) {
+    if (channels == 0) throw std::invalid_argument("AudioRing: channels must be >= 1");
+    storage_ = std::unique_ptr<float[], FreeDeleter>(static_cast<float*>(
+        ::operator new[](capacity_ * channels_ * sizeof(float), std::align_val_t{kCacheLine})));
+    std::memset(storage_.get(), 0, capacity_ * channels_ * sizeof(float));
+    prod_.stream_frame = start_frame;
+    cons_.stream_offset = start_frame;
+  }
+
+  AudioRing(const AudioRing&) = delete;
+  AudioRing& operator=(const AudioRing&) = delete;
+
+  std::uint32_t channels() const noexcept { return channels_; }
+  std::size_t capacity_frames() const noexcept { return capacity_; }
+
+  // ---------------------------------------------------------------- producer
+
+  /// [RT, producer] Up to `max_frames` of free space as one or two segments (possibly empty).
+  WriteSpan write_acquire(std::size_t max_frames) noexcept {
+    const std::uint64_t w = prod_.write.load(std::memory_order_relaxed);
+    std::size_t free_frames = capacity_ - static_cast<std::size_t>(w - prod_.read_cache);
+    if (free_frames < max_frames) {
+      prod_.read_cache = cons_.read.load(std::memory_order_acquire);
+      free_frames = capacity_ - static_cast<std::size_t>(w - prod_.read_cache);
+    }
+    return make_span<WriteSpan>(w, std::min(max_frames, free_frames));
+  }
+
+  /// [RT, producer] Publishes the first `frames` frames of the last write span. Returns the frames
+  /// published: 0 (and the frames are reported lost) only if an earlier loss could not yet be
+  /// recorded because `max_pending_gaps` episodes are already waiting for the consumer.
+  std::size_t write_commit(std::size_t frames) noexcept {
+    if (frames == 0) return 0;
+    if (prod_.pending_lost != 0 && !flush_pending_gap()) {
+      write_lost(frames);
+      return 0;
+    }
+    const std::uint64_t w = prod_.write.load(std::memory_order_relaxed);
+    prod_.write.store(w + frames, std::memory_order_release);
+    prod_.stream_frame += frames;
+    return frames;
+  }
+
+  /// [RT, producer] Declares that the next `frames` frames of the stream could not be stored. The
+  /// stream clock advances past them, the loss is counted and the consumer will be told where.
+  void write_lost(std::size_t frames) noexcept {
+    if (frames == 0) return;
+    prod_.pending_lost += frames;
+    prod_.stream_frame += frames;
+    frames_lost_.store(frames_lost_.load(std::memory_order_relaxed) + frames, std::memory_order_relaxed);
+    overruns_.store(overruns_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+    flush_pending_gap();
+  }
+
+  /// [RT, producer] Copies `frames` interleaved frames in; what does not fit is reported lost.
+  /// Returns the number of frames stored.
+  std::size_t write(const float* interleaved, std::size_t frames) noexcept {
+    WriteSpan span = write_acquire(frames);
+    const std::size_t n1 = span.first.frames * channels_;
+    std::memcpy(span.first.data, interleaved, n1 * sizeof(float));
+    std::memcpy(span.second.data, interleaved + n1, span.second.frames * channels_ * sizeof(float));
+    const std::size_t stored = write_commit(span.frames());  // a refused commit reports its own loss
+    write_lost(frames - span.frames());
+    return stored;
+  }
+
+  /// [RT, producer] Stream frame number of the next frame the producer will write or lose.
+  std::uint64_t producer_frame() const noexcept { return prod_.stream_frame; }
+
+  // ---------------------------------------------------------------- consumer
+
+  /// [RT, consumer] Up to `max_frames` readable frames. The span never straddles a loss: if frames
+  /// were lost before the next readable frame, `lost_before` says how many, and `first_frame` is the
+  /// frame after the gap. A span with 0 frames may still report `lost_before` > 0.
+  ReadSpan read_acquire(std::size_t max_frames) noexcept {
+    const std::uint64_t r = cons_.read.load(std::memory_order_relaxed);
+    std::size_t available = static_cast<std::size_t>(cons_.write_cache - r);
+    if (available < max_frames) {
+      cons_.write_cache = prod_.write.load(std::memory_order_acquire);
+      available = static_cast<std::size_t>(cons_.write_cache - r);
+    }
+    std::uint64_t lost_here = 0;
+    for (;;) {
+      if (!cons_.has_gap && !gaps_.try_pop(cons_.gap)) break;
+      cons_.has_gap = true;
+      if (cons_.gap.ring_pos != r) {
+        available = std::min<std::size_t>(available, static_cast<std::size_t>(cons_.gap.ring_pos - r));
+        break;
+      }
+      lost_here += cons_.gap.frames;
+      cons_.has_gap = false;
+    }
+    cons_.stream_offset += lost_here;
+    ReadSpan span = make_span<ReadSpan>(r, std::min(max_frames, available));
+    span.first_frame = r + cons_.stream_offset;
+    span.lost_before = lost_here;
+    return span;
+  }
+
+  /// [RT, consumer] Frees the first `frames` frames of the last read span.
+  void read_release(std::size_t frames) noexcept {
+    cons_.read.store(cons_.read.load(std::memory_order_relaxed) + frames, std::memory_order_release);
+  }
+
+  /// [RT, consumer] Copies up to `max_frames` contiguous-in-time frames into `dst`; see read_acquire.
+  std::size_t read(float* dst, std::size_t max_frames, std::uint64_t* first_frame = nullptr,
+                   std::uint64_t* lost_before = nullptr) noexcept {
+    ReadSpan span = read_acquire(max_frames);
+    const std::size_t n1 = span.first.frames * channels_;
+    std::memcpy(dst, span.first.data, n1 * sizeof(float));
+    std::memcpy(dst + n1, span.second.data, span.second.frames * channels_ * sizeof(float));
+    read_release(span.frames());
+    if (first_frame) *first_frame = span.first_frame;
+    if (lost_before) *lost_before = span.lost_before;
+    return span.frames();
+  }
+
+  // ---------------------------------------------------------------- statistics
+
+  /// [any] Frames readable now (approximate while the producer runs).
+  std::size_t readable_frames() const noexcept {
+    return static_cast<std::size_t>(prod_.write.load(std::memory_order_acquire) -
+                                    cons_.read.load(std::memory_order_acquire));
+  }
+  /// [any] Total frames the producer reported lost.
+  std::uint64_t frames_lost() const noexcept { return frames_lost_.load(std::memory_order_relaxed); }
+  /// [any] Number of `write_lost` episodes (overruns).
+  std::uint64_t overruns() const noexcept { return overruns_.load(std::memory_order_relaxed); }
+
+ private:
+  struct Gap {
+    std::uint64_t ring_pos;  // ring position before which the frames were lost
+    std::uint64_t frames;
+  };
+  struct FreeDeleter {
+    void operator()(float* p) const noexcept { ::operator delete[](p, std::align_val_t{kCacheLine}); }
+  };
+
+  template <typename Span>
+  Span make_span(std::uint64_t pos, std::size_t frames) const noexcept {
+    const std::size_t start = static_cast<std::size_t>(pos & mask_);
+    const std::size_t n1 = std::min(frames, capacity_ - start);
+    Span s{};
+    s.first = Segment{storage_.get() + start * channels_, n1};
+    s.second = Segment{storage_.get(), frames - n1};
+    return s;
+  }
+
+  bool flush_pending_gap() noexcept {
+    if (!gaps_.try_push(Gap{prod_.write.load(std::memory_order_relaxed), prod_.pending_lost})) return false;
+    prod_.pending_lost = 0;
+    return true;
+  }
+
+  struct alignas(kCacheLine) Producer {
+    std::atomic<std::uint64_t> write{0};
+    std::uint64_t read_cache = 0;
+    std::uint64_t stream_frame = 0;
+    std::uint64_t pending_lost = 0;
+  };
+  struct alignas(kCacheLine) Consumer {
+    std::atomic<std::uint64_t> read{0};
+    std::uint64_t write_cache = 0;
+    std::uint64_t stream_offset = 0;  // stream frame of ring position 0 plus all losses applied so far
+    Gap gap{};
+    bool has_gap = false;
+  };
+
+  const std::uint32_t channels_;
+  const std::size_t capacity_;
+  const std::size_t mask_;
+  std::unique_ptr<float[], FreeDeleter> storage_;
+  SpscQueue<Gap> gaps_;
+  Producer prod_;
+  Consumer cons_;
+  alignas(kCacheLine) std::atomic<std::uint64_t> frames_lost_{0};
+  std::atomic<std::uint64_t> overruns_{0};
+};
+
+}  // namespace locus

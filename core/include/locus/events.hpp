@@ -1,0 +1,123 @@
+// Typed events that flow from detectors (real-time side) to localizers and sinks (main side).
+//
+// Every event is a trivially copyable value so it can cross a lock-free SPSC queue without
+// allocating. Time is always device-local: audio events carry the fractional sample index on their
+// stream's own frame counter (never a wall-clock guess); IMU/BLE/sync events carry the local time in
+// seconds of the device that sensed them. The JSON shape of each event is documented in docs/events.md.
+#pragma once
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string_view>
+#include <type_traits>
+#include <variant>
+
+#include "locus/fixed_string.hpp"
+
+namespace locus {
+
+using DeviceId = FixedString<32>;
+using NameTag = FixedString<32>;
+
+inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+/// A detector found a known signal in an audio stream.
+struct AudioDetection {
+  DeviceId device;              ///< device whose stream this is
+  NameTag detector;             ///< detector instance name (from the config)
+  std::uint32_t stream = 0;     ///< stream id within the device (0 = its audio input)
+  std::uint16_t channel = 0;    ///< channel (microphone) index
+  std::uint16_t template_index = 0;  ///< which template/code/signal matched
+  double frame = 0.0;           ///< fractional sample index on the stream's frame counter
+  double sample_rate_hz = 0.0;  ///< nominal rate of the stream (local time = frame / rate)
+  float snr_db = 0.0f;          ///< peak-to-noise ratio of the detection statistic
+  float confidence = 0.0f;      ///< 0..1
+  float amplitude = 0.0f;       ///< linear peak amplitude of the detection statistic
+};
+
+/// One IMU reading in the device body frame (Android convention), gravity included.
+struct ImuSample {
+  DeviceId device;
+  double t_s = 0.0;                       ///< local time
+  std::array<float, 3> accel_mps2{};      ///< m/s^2
+  std::array<float, 3> gyro_radps{};      ///< rad/s
+  std::array<float, 3> mag_ut{};          ///< µT, valid when has_mag
+  bool has_mag = false;
+};
+
+/// One received BLE advertisement.
+struct BleAdvertisement {
+  DeviceId device;                        ///< the scanning device
+  double t_s = 0.0;                       ///< local receive time
+  std::array<std::uint8_t, 6> address{};  ///< AA:BB:CC:DD:EE:FF, most significant byte first
+  float rssi_dbm = 0.0f;
+  float tx_power_dbm = 0.0f;              ///< valid when has_tx_power
+  bool has_tx_power = false;
+  std::uint8_t channel = 0;               ///< 37..39, 0 = unknown
+};
+
+/// A radio synchronisation message was received (SpyLoc: the beep follows after a known delay).
+struct RadioSync {
+  DeviceId device;   ///< the receiving device
+  double t_s = 0.0;  ///< local receive time
+  NameTag source;    ///< sender id
+};
+
+/// A detected step of a walker.
+struct Step {
+  DeviceId device;
+  NameTag detector;
+  double t_s = 0.0;          ///< local time of the step (heel strike)
+  float stride_m = 0.0f;     ///< estimated stride length, NaN when unknown
+  float frequency_hz = 0.0f; ///< current step frequency
+};
+
+/// Orientation of a device body frame (rotates body vectors into the reference frame).
+struct Attitude {
+  DeviceId device;
+  NameTag detector;
+  double t_s = 0.0;
+  std::array<float, 4> q_wxyz{1.0f, 0.0f, 0.0f, 0.0f};
+  float heading_rad = 0.0f;  ///< yaw of the body y axis in the reference frame
+};
+
+/// A position estimate published by a localizer. Unknown fields are NaN.
+struct Estimate {
+  NameTag plugin;                      ///< localizer instance name
+  DeviceId reference;                  ///< device whose frame `position_m` is expressed in ("" = world)
+  NameTag frame;                       ///< frame name, see docs/events.md (e.g. "world", "player_start")
+  NameTag target;                      ///< what was located (device id, tag address, user)
+  double t_s = 0.0;                    ///< time of validity on the reference device's clock
+  std::array<double, 3> position_m{kNaN, kNaN, kNaN};
+  std::uint8_t dims = 2;               ///< 2 or 3 valid position components
+  double direction_rad = kNaN;         ///< bearing of the target in the frame, when meaningful
+  double distance_m = kNaN;            ///< range to the target, when meaningful
+  double std_m = kNaN;                 ///< 1-sigma position uncertainty
+  float confidence = 0.0f;             ///< 0..1
+};
+
+/// Every event type, in a fixed order (the order is part of the plugin ABI).
+using Event = std::variant<AudioDetection, ImuSample, BleAdvertisement, RadioSync, Step, Attitude, Estimate>;
+static_assert(std::is_trivially_copyable_v<Event>);
+
+enum class EventType : std::uint8_t {
+  AudioDetection = 0,
+  ImuSample,
+  BleAdvertisement,
+  RadioSync,
+  Step,
+  Attitude,
+  Estimate,
+};
+inline constexpr std::size_t kEventTypeCount = std::variant_size_v<Event>;
+
+inline EventType type_of(const Event& e) noexcept { return static_cast<EventType>(e.index()); }
+
+/// Stable snake_case name used in configs and JSON ("audio_detection", ...).
+std::string_view event_type_name(EventType t) noexcept;
+/// Inverse of event_type_name; returns false for an unknown name.
+bool event_type_from_name(std::string_view name, EventType& out) noexcept;
+
+}  // namespace locus

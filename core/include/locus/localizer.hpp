@@ -1,0 +1,33 @@
+// Localizer plugins: subscribe to event types, talk to peers over the link, publish estimates.
+//
+// All methods run on the host's dispatcher thread ([main]): events, link messages and finish() are
+// never delivered concurrently, so a localizer needs no locks of its own.
+#pragma once
+
+#include <vector>
+
+#include "locus/events.hpp"
+#include "locus/host.hpp"
+#include "locus/params.hpp"
+
+namespace locus {
+
+class Localizer {
+ public:
+  virtual ~Localizer() = default;
+
+  /// [main] Validated params; subscribe to link topics through ctx.link here. Throw
+  /// std::runtime_error on a bad setup.
+  virtual void configure(const Params& params, HostContext& ctx) = 0;
+
+  /// [main] Event types this localizer wants (asked once, after configure()).
+  virtual std::vector<EventType> subscriptions() const = 0;
+
+  /// [main] One event of a subscribed type, from any device of this node.
+  virtual void on_event(const Event& event, Publisher& out) = 0;
+
+  /// [main] All inputs ended: publish final estimates.
+  virtual void finish(Publisher& /*out*/) {}
+};
+
+}  // namespace locus

@@ -1,0 +1,78 @@
+// The registry: every plugin and audio source the host can instantiate, by name.
+//
+// Built-in plugins and sources are added explicitly (plugins/builtin.cpp, hal/builtin.cpp);
+// external plugins are shared objects loaded with dlopen through LOCUS_PLUGIN_ENUM_SYMBOL
+// (see plugin.hpp), refused with a clear message on an ABI mismatch. [main] only.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "locus/audio_source.hpp"
+#include "locus/plugin.hpp"
+
+namespace locus {
+
+/// A HAL audio source type (built in; sources are host-side, not part of the plugin ABI).
+struct SourceDescriptor {
+  std::string name;
+  std::string description;
+  ParamSchema schema;
+  std::function<std::unique_ptr<AudioSource>()> create;
+};
+
+/// A plugin library could not be loaded or one of its descriptors is invalid. what() names the file
+/// and the reason (dlopen error, missing entry point, ABI mismatch, duplicate name, bad descriptor).
+class PluginLoadError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class Registry {
+ public:
+  Registry();
+  ~Registry();
+  Registry(const Registry&) = delete;
+  Registry& operator=(const Registry&) = delete;
+
+  /// Adds a built-in plugin descriptor (static storage). Throws PluginLoadError on a duplicate name
+  /// or an invalid descriptor.
+  void add_plugin(const locus_plugin_descriptor* descriptor, std::string origin = "built-in");
+  void add_source(SourceDescriptor source);
+
+  /// dlopens `path` and adds every descriptor it enumerates. Throws PluginLoadError (nothing from a
+  /// refused library is added). Returns the names added.
+  std::vector<std::string> load_library(const std::string& path);
+  /// Loads every `*.so` in `dir` (sorted by name). Collects failures instead of stopping at the first:
+  /// returns one message per library that failed.
+  std::vector<std::string> load_directory(const std::string& dir);
+
+  /// nullptr when absent.
+  const locus_plugin_descriptor* find_plugin(std::string_view name) const;
+  const SourceDescriptor* find_source(std::string_view name) const;
+
+  struct PluginEntry {
+    const locus_plugin_descriptor* descriptor;
+    std::string origin;  ///< "built-in" or the .so path
+  };
+  const std::vector<PluginEntry>& plugins() const noexcept { return plugins_; }
+  const std::vector<SourceDescriptor>& sources() const noexcept { return sources_; }
+
+  std::unique_ptr<Detector> create_detector(std::string_view name) const;    ///< throws if absent/not a detector
+  std::unique_ptr<Localizer> create_localizer(std::string_view name) const;  ///< throws if absent/not a localizer
+  std::unique_ptr<AudioSource> create_source(std::string_view name) const;   ///< throws if absent
+
+ private:
+  std::vector<PluginEntry> plugins_;
+  std::vector<SourceDescriptor> sources_;
+  std::vector<void*> libraries_;  // dlopen handles, closed in the destructor after instances are gone
+};
+
+/// A registry holding every built-in plugin and source (defined in the locus_builtins library).
+void register_builtins(Registry& registry);
+
+}  // namespace locus

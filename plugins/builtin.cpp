@@ -1,0 +1,12 @@
+// The built-in plugins, by name. Each plugin folder exposes its descriptor; adding a plugin means
+// adding one line here.
+#include "../hal/builtin.hpp"
+#include "locus/registry.hpp"
+
+namespace locus {
+
+void register_builtins(Registry& registry) {
+  hal::register_builtin_sources(registry);
+}
+
+}  // namespace locus
