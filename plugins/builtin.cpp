@@ -2,11 +2,13 @@
 // adding one line here.
 #include "../hal/builtin.hpp"
 #include "locus/registry.hpp"
+#include "onset/onset.hpp"
 
 namespace locus {
 
 void register_builtins(Registry& registry) {
   hal::register_builtin_sources(registry);
+  registry.add_plugin(onset_descriptor());
 }
 
 }  // namespace locus

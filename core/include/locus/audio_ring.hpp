@@ -92,8 +92,13 @@ class AudioRing {
   /// [RT, producer] Publishes the first `frames` frames of the last write span. Returns the frames
   /// published: 0 (and the frames are reported lost) only if an earlier loss could not yet be
   /// recorded because `max_pending_gaps` episodes are already waiting for the consumer.
+  /// `write_commit(0)` publishes nothing but retries recording such a pending loss, so a producer that
+  /// stops writing after an overrun can still let the consumer learn about it.
   std::size_t write_commit(std::size_t frames) noexcept {
-    if (frames == 0) return 0;
+    if (frames == 0) {
+      if (prod_.pending_lost != 0) flush_pending_gap();
+      return 0;
+    }
     if (prod_.pending_lost != 0 && !flush_pending_gap()) {
       write_lost(frames);
       return 0;
@@ -182,8 +187,11 @@ class AudioRing {
 
   /// [any] Frames readable now (approximate while the producer runs).
   std::size_t readable_frames() const noexcept {
-    return static_cast<std::size_t>(prod_.write.load(std::memory_order_acquire) -
-                                    cons_.read.load(std::memory_order_acquire));
+    // Read index first: it never passes the write index, which only grows, so the difference cannot
+    // wrap around (loading `write` first could see a `read` that has moved past it since).
+    const std::uint64_t r = cons_.read.load(std::memory_order_acquire);
+    const std::uint64_t w = prod_.write.load(std::memory_order_acquire);
+    return static_cast<std::size_t>(w - r);
   }
   /// [any] Total frames the producer reported lost.
   std::uint64_t frames_lost() const noexcept { return frames_lost_.load(std::memory_order_relaxed); }

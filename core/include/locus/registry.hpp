@@ -42,6 +42,11 @@ class Registry {
   /// Adds a built-in plugin descriptor (static storage). Throws PluginLoadError on a duplicate name
   /// or an invalid descriptor.
   void add_plugin(const locus_plugin_descriptor* descriptor, std::string origin = "built-in");
+  /// Checks what add_plugin checks (ABI version, name, kind, factory, schema, no clash with a registered
+  /// name) without adding anything; throws the same PluginLoadError.
+  void check_plugin(const locus_plugin_descriptor* descriptor, const std::string& origin = "built-in") const;
+  /// Adds a built-in audio source. Throws std::invalid_argument on an empty name, a missing factory or
+  /// a duplicate name.
   void add_source(SourceDescriptor source);
 
   /// dlopens `path` and adds every descriptor it enumerates. Throws PluginLoadError (nothing from a

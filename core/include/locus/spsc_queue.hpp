@@ -62,8 +62,11 @@ class SpscQueue {
 
   /// [any] Approximate number of queued values (exact when both sides are idle).
   std::size_t size_approx() const noexcept {
-    return static_cast<std::size_t>(prod_.write.load(std::memory_order_acquire) -
-                                    cons_.read.load(std::memory_order_acquire));
+    // Read index first: it never passes the write index, which only grows, so the difference cannot
+    // wrap around (loading `write` first could see a `read` that has moved past it since).
+    const std::uint64_t r = cons_.read.load(std::memory_order_acquire);
+    const std::uint64_t w = prod_.write.load(std::memory_order_acquire);
+    return static_cast<std::size_t>(w - r);
   }
 
   std::size_t capacity() const noexcept { return capacity_; }

@@ -1,0 +1,129 @@
+#include "locus/json_events.hpp"
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+
+namespace locus {
+
+namespace {
+
+nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+template <std::size_t N>
+nlohmann::json vec(const std::array<float, N>& a) {
+  nlohmann::json j = nlohmann::json::array();
+  for (float v : a) j.push_back(num(v));
+  return j;
+}
+
+std::string mac(const std::array<std::uint8_t, 6>& a) {
+  char buf[18];
+  std::snprintf(buf, sizeof buf, "%02X:%02X:%02X:%02X:%02X:%02X", a[0], a[1], a[2], a[3], a[4], a[5]);
+  return buf;
+}
+
+struct ToJson {
+  nlohmann::json& j;
+  void operator()(const AudioDetection& e) const {
+    j["device"] = e.device.str();
+    j["detector"] = e.detector.str();
+    j["stream"] = e.stream;
+    j["channel"] = e.channel;
+    j["template"] = e.template_index;
+    j["frame"] = e.frame;
+    j["t_s"] = e.sample_rate_hz > 0 ? num(e.frame / e.sample_rate_hz) : nlohmann::json(nullptr);
+    j["sample_rate_hz"] = e.sample_rate_hz;
+    j["snr_db"] = num(e.snr_db);
+    j["confidence"] = num(e.confidence);
+    j["amplitude"] = num(e.amplitude);
+  }
+  void operator()(const ImuSample& e) const {
+    j["device"] = e.device.str();
+    j["t_s"] = e.t_s;
+    j["accel_mps2"] = vec(e.accel_mps2);
+    j["gyro_radps"] = vec(e.gyro_radps);
+    j["mag_ut"] = e.has_mag ? vec(e.mag_ut) : nlohmann::json(nullptr);
+  }
+  void operator()(const BleAdvertisement& e) const {
+    j["device"] = e.device.str();
+    j["t_s"] = e.t_s;
+    j["address"] = mac(e.address);
+    j["rssi_dbm"] = num(e.rssi_dbm);
+    j["tx_power_dbm"] = e.has_tx_power ? num(e.tx_power_dbm) : nlohmann::json(nullptr);
+    j["channel"] = e.channel == 0 ? nlohmann::json(nullptr) : nlohmann::json(e.channel);
+  }
+  void operator()(const RadioSync& e) const {
+    j["device"] = e.device.str();
+    j["t_s"] = e.t_s;
+    j["source"] = e.source.str();
+  }
+  void operator()(const Step& e) const {
+    j["device"] = e.device.str();
+    j["detector"] = e.detector.str();
+    j["t_s"] = e.t_s;
+    j["stride_m"] = num(e.stride_m);
+    j["frequency_hz"] = num(e.frequency_hz);
+  }
+  void operator()(const Attitude& e) const {
+    j["device"] = e.device.str();
+    j["detector"] = e.detector.str();
+    j["t_s"] = e.t_s;
+    j["q_wxyz"] = vec(e.q_wxyz);
+    j["heading_rad"] = num(e.heading_rad);
+  }
+  void operator()(const Estimate& e) const {
+    j["plugin"] = e.plugin.str();
+    j["reference"] = e.reference.str();
+    j["frame"] = e.frame.str();
+    j["target"] = e.target.str();
+    j["t_s"] = e.t_s;
+    nlohmann::json p = nlohmann::json::array();
+    for (int i = 0; i < e.dims && i < 3; ++i) p.push_back(num(e.position_m[static_cast<std::size_t>(i)]));
+    j["position_m"] = p;
+    j["direction_rad"] = num(e.direction_rad);
+    j["distance_m"] = num(e.distance_m);
+    j["std_m"] = num(e.std_m);
+    j["confidence"] = num(e.confidence);
+  }
+};
+
+}  // namespace
+
+nlohmann::json event_to_json(const Event& event) {
+  nlohmann::json j = nlohmann::json::object();
+  j["type"] = std::string(event_type_name(type_of(event)));
+  std::visit(ToJson{j}, event);
+  return j;
+}
+
+JsonLinesWriter::JsonLinesWriter(const std::string& path) : path_(path) {
+  if (path == "-") {
+    file_ = stdout;
+  } else {
+    file_ = std::fopen(path.c_str(), "w");
+    if (!file_) throw std::runtime_error("cannot open output '" + path + "': " + std::strerror(errno));
+    owned_ = true;
+  }
+}
+
+JsonLinesWriter::~JsonLinesWriter() {
+  flush();
+  if (owned_) std::fclose(file_);
+}
+
+void JsonLinesWriter::write(const Event& event) { write(event_to_json(event)); }
+
+void JsonLinesWriter::write(const nlohmann::json& object) {
+  const std::string line = object.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
+  std::fwrite(line.data(), 1, line.size(), file_);
+  std::fflush(file_);
+  ++lines_;
+}
+
+void JsonLinesWriter::flush() {
+  if (file_) std::fflush(file_);
+}
+
+}  // namespace locus

@@ -1,0 +1,236 @@
+// Registry::load_library / load_directory: external plugins as shared objects (see plugin.hpp).
+//
+// A library is all-or-nothing: it is dlopen()ed, every descriptor it enumerates is validated
+// (ABI version first, then the fields, then name clashes with what is already registered and
+// within the library), and only then are they added. A refused library is dlclose()d and leaves
+// the registry as it was. An accepted library's handle stays open in `libraries_` until the
+// registry is destroyed (after every instance it created is gone).
+#include <dlfcn.h>
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <vector>
+
+#include "locus/registry.hpp"
+
+namespace locus {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A library enumerating more descriptors than this is assumed to be missing its nullptr sentinel.
+constexpr std::uint32_t kMaxDescriptorsPerLibrary = 256;
+
+/// Closes a dlopen handle unless released (refused libraries never stay loaded).
+class LibraryHandle {
+ public:
+  explicit LibraryHandle(void* handle) noexcept : handle_(handle) {}
+  ~LibraryHandle() {
+    if (handle_ != nullptr) ::dlclose(handle_);
+  }
+  LibraryHandle(const LibraryHandle&) = delete;
+  LibraryHandle& operator=(const LibraryHandle&) = delete;
+  void* get() const noexcept { return handle_; }
+  void* release() noexcept {
+    void* h = handle_;
+    handle_ = nullptr;
+    return h;
+  }
+
+ private:
+  void* handle_;
+};
+
+bool valid_plugin_name(std::string_view name) noexcept {
+  if (name.empty()) return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
+  });
+}
+
+std::string describe(const locus_plugin_descriptor& d, std::uint32_t index) {
+  if (d.name != nullptr) return "descriptor '" + std::string(d.name) + "'";
+  return "descriptor #" + std::to_string(index);
+}
+
+/// dlerror() text without a leading "<path>: " (the message already names the file).
+std::string dl_reason(const std::string& dlopen_path) {
+  const char* e = ::dlerror();
+  std::string reason = e != nullptr ? e : "unknown dynamic loader error";
+  const std::string prefix = dlopen_path + ": ";
+  if (reason.compare(0, prefix.size(), prefix) == 0) reason.erase(0, prefix.size());
+  return reason;
+}
+
+}  // namespace
+
+std::vector<std::string> Registry::load_library(const std::string& path) {
+  const auto error = [&path](const std::string& reason) {
+    return PluginLoadError("plugin library " + path + ": " + reason);
+  };
+
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (ec || !fs::exists(status)) throw error("no such file");
+  if (fs::is_directory(status)) throw error("is a directory, not a shared object");
+
+  // dlopen() searches the library path for a name without a '/'; always hand it a real path.
+  std::string dlopen_path = path;
+  if (dlopen_path.find('/') == std::string::npos) dlopen_path = "./" + dlopen_path;
+
+  ::dlerror();  // clear any stale error
+  LibraryHandle handle(::dlopen(dlopen_path.c_str(), RTLD_NOW | RTLD_LOCAL));
+  if (handle.get() == nullptr) throw error("cannot be loaded as a shared object: " + dl_reason(dlopen_path));
+
+  ::dlerror();
+  void* symbol = ::dlsym(handle.get(), LOCUS_PLUGIN_ENUM_SYMBOL);
+  if (symbol == nullptr) {
+    throw error("no entry point '" LOCUS_PLUGIN_ENUM_SYMBOL
+                "' (not a Locus plugin; a plugin defines it with LOCUS_PLUGIN_EXPORT from locus/plugin.hpp)");
+  }
+  const auto enumerate = reinterpret_cast<locus_plugin_enum_fn>(symbol);
+
+  // Validate everything before adding anything.
+  std::vector<const locus_plugin_descriptor*> descriptors;
+  for (std::uint32_t index = 0;; ++index) {
+    if (index == kMaxDescriptorsPerLibrary) {
+      throw error("enumerates more than " + std::to_string(kMaxDescriptorsPerLibrary) +
+                  " descriptors (" LOCUS_PLUGIN_ENUM_SYMBOL " must return nullptr past the last one)");
+    }
+    const locus_plugin_descriptor* d = nullptr;
+    try {
+      d = enumerate(index);
+    } catch (...) {
+      throw error(LOCUS_PLUGIN_ENUM_SYMBOL "(" + std::to_string(index) + ") threw an exception");
+    }
+    if (d == nullptr) break;
+
+    // abi_version is the only field whose position every ABI shares: check it before reading others.
+    if (d->abi_version != LOCUS_PLUGIN_ABI_VERSION) {
+      throw error("descriptor #" + std::to_string(index) + " was built for Locus plugin ABI " +
+                  std::to_string(d->abi_version) + ", this host speaks ABI " +
+                  std::to_string(LOCUS_PLUGIN_ABI_VERSION) +
+                  "; rebuild the plugin against this Locus (find_package(Locus))");
+    }
+    const std::string what = describe(*d, index);
+    if (d->name == nullptr) throw error(what + " has a null name");
+    if (!valid_plugin_name(d->name)) {
+      throw error(what + " has an invalid name (a plugin name is [a-z0-9_]+)");
+    }
+    if (d->version == nullptr) throw error(what + " has a null version");
+    if (d->description == nullptr) throw error(what + " has a null description");
+    if (d->schema == nullptr) throw error(what + " has a null schema function");
+    switch (d->kind) {
+      case LOCUS_PLUGIN_DETECTOR:
+        if (d->create_detector == nullptr) throw error(what + " is a detector with a null create_detector");
+        if (d->create_localizer != nullptr) throw error(what + " is a detector but also sets create_localizer");
+        if (d->inputs == 0) throw error(what + " is a detector that declares no inputs");
+        if ((d->inputs & ~std::uint32_t{kInputAudio | kInputImu | kInputBle}) != 0) {
+          throw error(what + " declares unknown input bits " + std::to_string(d->inputs));
+        }
+        break;
+      case LOCUS_PLUGIN_LOCALIZER:
+        if (d->create_localizer == nullptr) throw error(what + " is a localizer with a null create_localizer");
+        if (d->create_detector != nullptr) throw error(what + " is a localizer but also sets create_detector");
+        break;
+      default:
+        throw error(what + " has an unknown kind " + std::to_string(d->kind) +
+                    " (1 = detector, 2 = localizer)");
+    }
+    try {
+      if (d->schema() == nullptr) throw error(what + ": schema() returned nullptr");
+    } catch (const PluginLoadError&) {
+      throw;
+    } catch (...) {
+      throw error(what + ": schema() threw an exception");
+    }
+
+    const std::string_view name(d->name);
+    for (const locus_plugin_descriptor* earlier : descriptors) {
+      if (name == earlier->name) throw error(what + " is enumerated twice by this library");
+    }
+    for (const PluginEntry& entry : plugins_) {
+      if (entry.descriptor != nullptr && entry.descriptor->name != nullptr && name == entry.descriptor->name) {
+        throw error("plugin name '" + std::string(name) + "' is already registered (" +
+                    (entry.origin == "built-in" ? std::string("built-in") : "loaded from " + entry.origin) + ")");
+      }
+    }
+    // Whatever else add_plugin() insists on (the same rules as for built-ins).
+    try {
+      check_plugin(d, path);
+    } catch (const std::exception& e) {
+      const std::string reason = e.what();
+      if (reason.find(path) != std::string::npos) throw PluginLoadError(reason);
+      throw error(reason);
+    }
+    descriptors.push_back(d);
+  }
+  if (descriptors.empty()) throw error(LOCUS_PLUGIN_ENUM_SYMBOL " enumerates no plugins");
+
+  // Add them all, or none: add_plugin validates again and may still refuse one.
+  const std::size_t before = plugins_.size();
+  std::vector<std::string> names;
+  names.reserve(descriptors.size());
+  try {
+    for (const locus_plugin_descriptor* d : descriptors) {
+      add_plugin(d, path);
+      names.emplace_back(d->name);
+    }
+    libraries_.push_back(handle.get());
+  } catch (const std::exception& e) {
+    plugins_.erase(plugins_.begin() + static_cast<std::ptrdiff_t>(before), plugins_.end());
+    const std::string reason = e.what();
+    // add_plugin's messages may or may not name the file already.
+    if (reason.find(path) != std::string::npos) throw PluginLoadError(reason);
+    throw error(reason);
+  }
+  handle.release();
+  return names;
+}
+
+std::vector<std::string> Registry::load_directory(const std::string& dir) {
+  std::vector<std::string> failures;
+  std::error_code ec;
+  const fs::file_status status = fs::status(dir, ec);
+  if (ec || !fs::exists(status)) {
+    failures.push_back("plugin directory " + dir + ": no such directory");
+    return failures;
+  }
+  if (!fs::is_directory(status)) {
+    failures.push_back("plugin directory " + dir + ": not a directory");
+    return failures;
+  }
+
+  std::vector<fs::path> libraries;
+  fs::directory_iterator it(dir, ec);
+  if (ec) {
+    failures.push_back("plugin directory " + dir + ": cannot be read: " + ec.message());
+    return failures;
+  }
+  for (const fs::directory_entry& entry : it) {
+    const fs::path& p = entry.path();
+    if (p.extension() != ".so") continue;
+    std::error_code type_ec;
+    if (entry.is_directory(type_ec)) continue;
+    libraries.push_back(p);
+  }
+  std::sort(libraries.begin(), libraries.end(),
+            [](const fs::path& a, const fs::path& b) { return a.filename().native() < b.filename().native(); });
+
+  for (const fs::path& p : libraries) {
+    try {
+      load_library(p.string());
+    } catch (const PluginLoadError& e) {
+      failures.emplace_back(e.what());
+    }
+  }
+  return failures;
+}
+
+}  // namespace locus

@@ -1,0 +1,209 @@
+// Registry: plugin descriptors and audio sources by name (the in-memory part; dlopen lives in
+// plugin_loader.cpp).
+#include "locus/registry.hpp"
+
+#include <dlfcn.h>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <type_traits>
+#include <variant>
+
+namespace locus {
+
+namespace {
+
+/// Instance names default to the plugin name and are carried in NameTag (31 characters).
+constexpr std::size_t kMaxPluginNameLength = 31;
+
+bool valid_plugin_name(std::string_view name) noexcept {
+  return !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
+  });
+}
+
+std::string_view kind_name(std::uint32_t kind) noexcept {
+  switch (kind) {
+    case LOCUS_PLUGIN_DETECTOR: return "detector";
+    case LOCUS_PLUGIN_LOCALIZER: return "localizer";
+    default: return "plugin of unknown kind";
+  }
+}
+
+bool default_matches(const ParamSpec& spec) {
+  const ParamValue& v = spec.default_value;
+  switch (spec.type) {
+    case ParamType::Bool: return std::holds_alternative<bool>(v);
+    case ParamType::Int: return std::holds_alternative<std::int64_t>(v);
+    case ParamType::Float: return std::holds_alternative<double>(v) || std::holds_alternative<std::int64_t>(v);
+    case ParamType::String:
+    case ParamType::Enum: return std::holds_alternative<std::string>(v);
+    case ParamType::FloatList: return std::holds_alternative<std::vector<double>>(v);
+  }
+  return false;
+}
+
+bool in_range(const ParamSpec& spec, double x) {
+  if (std::isnan(x)) return true;  // NaN defaults mean "automatic" for some plugins
+  return !(spec.min && x < *spec.min) && !(spec.max && x > *spec.max);
+}
+
+/// Problems of a schema a plugin declares, or "" when it is sound.
+std::string schema_problem(const ParamSchema& schema) {
+  for (std::size_t i = 0; i < schema.size(); ++i) {
+    const ParamSpec& spec = schema[i];
+    if (spec.key.empty()) return "parameter #" + std::to_string(i) + " has an empty key";
+    const std::string where = "parameter '" + spec.key + "'";
+    for (std::size_t j = 0; j < i; ++j) {
+      if (schema[j].key == spec.key) return where + " is declared twice";
+    }
+    if (spec.min && spec.max && *spec.min > *spec.max) return where + " has min > max";
+    if (spec.type == ParamType::Enum && spec.choices.empty()) return where + " is an enum without choices";
+    if (spec.min_items && spec.max_items && *spec.min_items > *spec.max_items) {
+      return where + " has min_items > max_items";
+    }
+    if (spec.required()) continue;
+    if (!default_matches(spec)) {
+      return where + " has a default that is not a " + std::string(param_type_name(spec.type));
+    }
+    bool ok = true;
+    if (const auto* d = std::get_if<double>(&spec.default_value)) ok = in_range(spec, *d);
+    if (const auto* n = std::get_if<std::int64_t>(&spec.default_value)) ok = in_range(spec, static_cast<double>(*n));
+    if (const auto* l = std::get_if<std::vector<double>>(&spec.default_value)) {
+      ok = std::all_of(l->begin(), l->end(), [&](double x) { return in_range(spec, x); });
+    }
+    if (!ok) return where + " has a default outside [min, max]";
+    if (spec.type == ParamType::Enum) {
+      const auto& s = std::get<std::string>(spec.default_value);
+      if (std::find(spec.choices.begin(), spec.choices.end(), s) == spec.choices.end()) {
+        return where + " has a default '" + s + "' that is not one of its choices";
+      }
+    }
+  }
+  return {};
+}
+
+}  // namespace
+
+Registry::Registry() = default;
+
+Registry::~Registry() {
+  // Descriptors point into the libraries: forget them first, then unload in reverse load order.
+  plugins_.clear();
+  for (auto it = libraries_.rbegin(); it != libraries_.rend(); ++it) {
+    if (*it != nullptr) ::dlclose(*it);
+  }
+}
+
+void Registry::check_plugin(const locus_plugin_descriptor* d, const std::string& origin) const {
+  const auto fail = [&](const std::string& reason) -> PluginLoadError {
+    std::string who = "cannot add plugin";
+    // Only abi_version is at a known position in a descriptor of another ABI: never read the name then.
+    if (d != nullptr && d->abi_version == LOCUS_PLUGIN_ABI_VERSION && d->name != nullptr) {
+      who += " '" + std::string(d->name) + "'";
+    }
+    return PluginLoadError(who + " (" + origin + "): " + reason);
+  };
+  if (d == nullptr) throw fail("null descriptor");
+  if (d->abi_version != LOCUS_PLUGIN_ABI_VERSION) {
+    throw fail("built for plugin ABI version " + std::to_string(d->abi_version) + ", this host uses version " +
+               std::to_string(LOCUS_PLUGIN_ABI_VERSION) + "; rebuild the plugin against this Locus");
+  }
+  if (d->name == nullptr) throw fail("the descriptor has no name");
+  const std::string_view name(d->name);
+  if (!valid_plugin_name(name)) throw fail("invalid name (a plugin name is [a-z0-9_]+)");
+  if (name.size() > kMaxPluginNameLength) {
+    throw fail("name longer than " + std::to_string(kMaxPluginNameLength) + " characters");
+  }
+  switch (d->kind) {
+    case LOCUS_PLUGIN_DETECTOR:
+      if (d->create_detector == nullptr) throw fail("a detector without a create_detector factory");
+      break;
+    case LOCUS_PLUGIN_LOCALIZER:
+      if (d->create_localizer == nullptr) throw fail("a localizer without a create_localizer factory");
+      break;
+    default:
+      throw fail("unknown kind " + std::to_string(d->kind) + " (1 = detector, 2 = localizer)");
+  }
+  if (d->schema == nullptr) throw fail("no schema function");
+  const ParamSchema* schema = nullptr;
+  try {
+    schema = d->schema();
+  } catch (...) {
+    throw fail("schema() threw an exception");
+  }
+  if (schema == nullptr) throw fail("schema() returned nullptr");
+  if (const std::string problem = schema_problem(*schema); !problem.empty()) throw fail("bad schema: " + problem);
+  for (const PluginEntry& e : plugins_) {
+    if (e.descriptor->name == name) throw fail("the name is already registered (" + e.origin + ")");
+  }
+}
+
+void Registry::add_plugin(const locus_plugin_descriptor* descriptor, std::string origin) {
+  check_plugin(descriptor, origin);
+  plugins_.push_back(PluginEntry{descriptor, std::move(origin)});
+}
+
+void Registry::add_source(SourceDescriptor source) {
+  if (source.name.empty()) throw std::invalid_argument("cannot add an audio source without a name");
+  if (!source.create) throw std::invalid_argument("audio source '" + source.name + "' has no factory");
+  if (find_source(source.name) != nullptr) {
+    throw std::invalid_argument("audio source '" + source.name + "' is already registered");
+  }
+  sources_.push_back(std::move(source));
+}
+
+const locus_plugin_descriptor* Registry::find_plugin(std::string_view name) const {
+  for (const PluginEntry& e : plugins_) {
+    if (e.descriptor->name == name) return e.descriptor;
+  }
+  return nullptr;
+}
+
+const SourceDescriptor* Registry::find_source(std::string_view name) const {
+  for (const SourceDescriptor& s : sources_) {
+    if (s.name == name) return &s;
+  }
+  return nullptr;
+}
+
+namespace {
+
+const locus_plugin_descriptor& require(const Registry& r, std::string_view name, std::uint32_t kind) {
+  const locus_plugin_descriptor* d = r.find_plugin(name);
+  if (d == nullptr) throw std::runtime_error("unknown plugin '" + std::string(name) + "'");
+  if (d->kind != kind) {
+    throw std::runtime_error("plugin '" + std::string(name) + "' is a " + std::string(kind_name(d->kind)) +
+                             ", not a " + std::string(kind_name(kind)));
+  }
+  return *d;
+}
+
+}  // namespace
+
+std::unique_ptr<Detector> Registry::create_detector(std::string_view name) const {
+  const locus_plugin_descriptor& d = require(*this, name, LOCUS_PLUGIN_DETECTOR);
+  std::unique_ptr<Detector> p(d.create_detector());
+  if (!p) throw std::runtime_error("plugin '" + std::string(name) + "' failed to create a detector");
+  return p;
+}
+
+std::unique_ptr<Localizer> Registry::create_localizer(std::string_view name) const {
+  const locus_plugin_descriptor& d = require(*this, name, LOCUS_PLUGIN_LOCALIZER);
+  std::unique_ptr<Localizer> p(d.create_localizer());
+  if (!p) throw std::runtime_error("plugin '" + std::string(name) + "' failed to create a localizer");
+  return p;
+}
+
+std::unique_ptr<AudioSource> Registry::create_source(std::string_view name) const {
+  const SourceDescriptor* s = find_source(name);
+  if (s == nullptr) throw std::runtime_error("unknown audio source '" + std::string(name) + "'");
+  std::unique_ptr<AudioSource> p = s->create();
+  if (!p) throw std::runtime_error("audio source '" + std::string(name) + "' failed to create an instance");
+  return p;
+}
+
+}  // namespace locus

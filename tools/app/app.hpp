@@ -1,0 +1,41 @@
+// Shared implementation of the command-line tools (locusd, locus): each command is a function
+// returning the process exit status, so the binaries stay thin and tests can call commands directly.
+//
+// Exit status: 0 success, 1 runtime failure, 2 bad config or usage, 3 a plugin library failed to load.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "locus/host.hpp"
+
+namespace locus::app {
+
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailure = 1;
+inline constexpr int kExitBadConfig = 2;
+inline constexpr int kExitPluginLoad = 3;
+
+struct RunOptions {
+  std::string config_path;
+  std::optional<std::string> output;  ///< overrides output.path
+  std::optional<std::string> log_level;
+};
+
+/// Adds the options of RunOptions to a CLI11 (sub)command.
+void add_run_options(CLI::App& cmd, RunOptions& opts);
+
+/// Runs a node from a config until its finite sources end or SIGINT/SIGTERM arrives; flushes all
+/// output before returning.
+int run_node(const RunOptions& opts);
+
+/// Lists built-in and loaded plugins (and audio sources) with their parameter schemas.
+int list_plugins(const std::vector<std::string>& plugin_dirs, bool json);
+
+/// Validates a config and prints every error; 0 when valid, 2 otherwise.
+int check_config(const std::string& path);
+
+}  // namespace locus::app

@@ -1,0 +1,42 @@
+// locus: the multi-command tool (run, check-config, plugins, version; later: simulate, replay, eval,
+// record, devices). Each subcommand is a function in tools/app.
+#include <iostream>
+
+#include "app.hpp"
+#include "locus/plugin.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App cli{"locus: localization from sound, motion and radio"};
+  cli.require_subcommand(1);
+
+  locus::app::RunOptions run_opts;
+  auto* run = cli.add_subcommand("run", "run a node from a config (same as locusd)");
+  locus::app::add_run_options(*run, run_opts);
+
+  std::string config_path;
+  auto* check = cli.add_subcommand("check-config", "validate a config and print every error (exit 2 if any)");
+  check->add_option("config", config_path, "config file")->required();
+
+  std::vector<std::string> plugin_dirs;
+  bool json = false;
+  auto* plugins = cli.add_subcommand("plugins", "list plugins and audio sources with their parameters");
+  plugins->add_option("--plugin-dir", plugin_dirs, "also load every *.so in this directory (repeatable)");
+  plugins->add_flag("--json", json, "machine-readable output");
+
+  auto* version = cli.add_subcommand("version", "print the version and plugin ABI");
+
+  try {
+    cli.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = cli.exit(e);
+    return code == 0 ? 0 : locus::app::kExitBadConfig;
+  }
+  if (*run) return locus::app::run_node(run_opts);
+  if (*check) return locus::app::check_config(config_path);
+  if (*plugins) return locus::app::list_plugins(plugin_dirs, json);
+  if (*version) {
+    std::cout << "locus " << LOCUS_VERSION << " (plugin ABI " << LOCUS_PLUGIN_ABI_VERSION << ")\n";
+    return 0;
+  }
+  return 0;
+}
