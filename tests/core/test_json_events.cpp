@@ -65,7 +65,7 @@ TEST(JsonLinesWriter, OneObjectPerLineFlushedAsWritten) {
     std::string line;
     int n = 0;
     while (std::getline(in, line)) {
-      EXPECT_NO_THROW((void)nlohmann::json::parse(line));
+      EXPECT_NO_THROW((void)nlohmann::ordered_json::parse(line));
       ++n;
     }
     EXPECT_EQ(n, 2);

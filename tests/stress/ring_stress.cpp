@@ -187,8 +187,10 @@ Result blocking_run(std::uint32_t channels, std::uint64_t frames, std::uint64_t 
 
 // ------------------------------------------------------------------ phase 2: live producer, exact loss accounting
 
+// `rate`: the producer's average frame rate (frames/s), chosen below the blocking throughput so that the
+// consumer normally keeps up and losses come from its stalls, bursts and preemption.
 Result live_run(std::uint32_t channels, std::uint64_t frames, std::uint64_t start_frame, std::size_t capacity,
-                std::size_t max_block, std::size_t max_gaps, std::uint64_t seed) {
+                std::size_t max_block, std::size_t max_gaps, double rate, std::uint64_t seed) {
   AudioRing ring(channels, capacity, max_gaps, start_frame);
   const std::uint64_t end_frame = start_frame + frames;
   std::atomic<bool> producer_finished{false};
@@ -214,10 +216,12 @@ Result live_run(std::uint32_t channels, std::uint64_t frames, std::uint64_t star
       }
       frame += n;
       if (ring.producer_frame() != frame) fail.report("producer_frame", ring.producer_frame(), frame);
-      // Pace like an audio callback: some work between blocks, bursts now and then.
-      if (rng() % 16 != 0) {
-        const unsigned spins = static_cast<unsigned>(rng() % (n * 2 + 1));
-        for (unsigned i = 0; i < spins; ++i) LOCUS_CPU_RELAX();
+      // Pace like an audio device: blocks are due at `rate` frames/s on average; the producer waits for
+      // the clock (never for the ring). Now and then it skips the wait, producing a burst.
+      if (rng() % 32 != 0) {
+        const auto due = t0 + std::chrono::duration_cast<Clock::duration>(
+                                  std::chrono::duration<double>((frame - start_frame) / rate));
+        for (Backoff backoff; Clock::now() < due;) backoff();
       }
     }
     producer_finished.store(true, std::memory_order_release);
@@ -264,10 +268,11 @@ Result live_run(std::uint32_t channels, std::uint64_t frames, std::uint64_t star
       lost += lost_before;
       gaps += lost_before != 0;
       next = first + n;
-      // Stall now and then so the live producer overruns the ring.
-      if (rng() % 64 == 0) {
-        const unsigned spins = static_cast<unsigned>(rng() % 20000);
-        for (unsigned i = 0; i < spins; ++i) LOCUS_CPU_RELAX();
+      // Stall now and then, up to ~3 ring lengths of stream time, so the live producer overruns the ring.
+      if (rng() % 256 == 0) {
+        const double stall = (rng() % 1000) / 1000.0 * 3.0 * static_cast<double>(ring.capacity_frames()) / rate;
+        const auto until = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(stall));
+        for (Backoff backoff; Clock::now() < until;) backoff();
       }
     }
   }
@@ -283,9 +288,9 @@ Result live_run(std::uint32_t channels, std::uint64_t frames, std::uint64_t star
   if (ring.readable_frames() != 0) fail.report("left in ring", ring.readable_frames(), 0);
   if (lost == 0 || received == 0) std::printf("  note: live run saw %s\n", lost == 0 ? "no loss" : "no data");
 
-  std::printf("live      %u ch, ring %5zu frames, gap queue %2zu: %" PRIu64 " frames: %" PRIu64 " received, %" PRIu64
-              " lost in %" PRIu64 " gaps (%" PRIu64 " overruns) in %.2f s  %s\n",
-              channels, ring.capacity_frames(), max_gaps, frames, received, lost, gaps, ring.overruns(), secs,
+  std::printf("live      %u ch, ring %5zu frames, gap queue %2zu, %.1f Mframes/s: %" PRIu64 " frames: %" PRIu64
+              " received, %" PRIu64 " lost in %" PRIu64 " gaps (%" PRIu64 " overruns) in %.2f s  %s\n",
+              channels, ring.capacity_frames(), max_gaps, rate / 1e6, frames, received, lost, gaps, ring.overruns(), secs,
               fail.count ? "FAILED" : "ok");
   return {frames, secs, fail.count == 0};
 }
@@ -316,12 +321,15 @@ int main() {
     total_secs += r.seconds;
   };
 
-  account(blocking_run(2, frames, 0, 8192, 1024, 1), 2);
-  account(blocking_run(3, std::max<std::uint64_t>(frames / 2, 1), (1ull << 62) + 12345, 4096, 1024, 2), 3);
+  const Result b2 = blocking_run(2, frames, 0, 8192, 1024, 1);
+  const Result b3 = blocking_run(3, std::max<std::uint64_t>(frames / 2, 1), (1ull << 62) + 12345, 4096, 1024, 2);
+  account(b2, 2);
+  account(b3, 3);
 
+  // Live runs at a third of the measured blocking throughput, for ~0.1 * frames stream frames each.
   const std::uint64_t live_frames = std::max<std::uint64_t>(frames / 10, 1);
-  const Result l1 = live_run(2, live_frames, 0, 2048, 512, 64, 3);
-  const Result l2 = live_run(3, live_frames, (1ull << 63) - 1000, 1024, 512, 2, 4);
+  const Result l1 = live_run(2, live_frames, 0, 2048, 512, 64, b2.frames / b2.seconds / 3, 3);
+  const Result l2 = live_run(3, live_frames, (1ull << 63) - 1000, 1024, 512, 2, b3.frames / b3.seconds / 3, 4);
   ok = ok && l1.ok && l2.ok;
 
   std::printf("throughput (blocking runs): %" PRIu64 " frames in %.2f s = %.1f Mframes/s, %.0f MB/s\n", total_frames,

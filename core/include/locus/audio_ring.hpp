@@ -27,6 +27,14 @@
 
 #include "locus/spsc_queue.hpp"
 
+// The copying fast paths are small once the rare cases (pending loss, gaps, large copies) are out of
+// line; inlining them into the caller saves the call and register spills on per-frame use.
+#if defined(__GNUC__)
+#define LOCUS_RING_INLINE [[gnu::always_inline]] inline
+#else
+#define LOCUS_RING_INLINE inline
+#endif
+
 namespace locus {
 
 class AudioRing {
@@ -122,14 +130,26 @@ class AudioRing {
 
   /// [RT, producer] Copies `frames` interleaved frames in; what does not fit is reported lost.
   /// Returns the number of frames stored.
-  std::size_t write(const float* interleaved, std::size_t frames) noexcept {
-    WriteSpan span = write_acquire(frames);
-    const std::size_t n1 = span.first.frames * channels_;
-    std::memcpy(span.first.data, interleaved, n1 * sizeof(float));
-    std::memcpy(span.second.data, interleaved + n1, span.second.frames * channels_ * sizeof(float));
-    const std::size_t stored = write_commit(span.frames());  // a refused commit reports its own loss
-    write_lost(frames - span.frames());
-    return stored;
+  LOCUS_RING_INLINE std::size_t write(const float* interleaved, std::size_t frames) noexcept {
+    if (prod_.pending_lost != 0) [[unlikely]] return write_slow(interleaved, frames);
+    // Same steps as write_acquire + write_commit + write_lost, without building a span.
+    const std::uint64_t w = prod_.write.load(std::memory_order_relaxed);
+    std::size_t free_frames = capacity_ - static_cast<std::size_t>(w - prod_.read_cache);
+    if (free_frames < frames) {
+      prod_.read_cache = cons_.read.load(std::memory_order_acquire);
+      free_frames = capacity_ - static_cast<std::size_t>(w - prod_.read_cache);
+    }
+    const std::size_t n = std::min(frames, free_frames);
+    const std::size_t start = static_cast<std::size_t>(w & mask_);
+    const std::size_t n1 = std::min(n, capacity_ - start);
+    copy_samples(storage_.get() + start * channels_, interleaved, n1 * channels_);
+    if (n1 != n) copy_samples(storage_.get(), interleaved + n1 * channels_, (n - n1) * channels_);
+    if (n != 0) {
+      prod_.write.store(w + n, std::memory_order_release);
+      prod_.stream_frame += n;
+    }
+    if (n != frames) [[unlikely]] write_lost(frames - n);
+    return n;
   }
 
   /// [RT, producer] Stream frame number of the next frame the producer will write or lose.
@@ -142,24 +162,8 @@ class AudioRing {
   /// frame after the gap. A span with 0 frames may still report `lost_before` > 0.
   ReadSpan read_acquire(std::size_t max_frames) noexcept {
     const std::uint64_t r = cons_.read.load(std::memory_order_relaxed);
-    std::size_t available = static_cast<std::size_t>(cons_.write_cache - r);
-    if (available < max_frames) {
-      cons_.write_cache = prod_.write.load(std::memory_order_acquire);
-      available = static_cast<std::size_t>(cons_.write_cache - r);
-    }
     std::uint64_t lost_here = 0;
-    for (;;) {
-      if (!cons_.has_gap && !gaps_.try_pop(cons_.gap)) break;
-      cons_.has_gap = true;
-      if (cons_.gap.ring_pos != r) {
-        available = std::min<std::size_t>(available, static_cast<std::size_t>(cons_.gap.ring_pos - r));
-        break;
-      }
-      lost_here += cons_.gap.frames;
-      cons_.has_gap = false;
-    }
-    cons_.stream_offset += lost_here;
-    ReadSpan span = make_span<ReadSpan>(r, std::min(max_frames, available));
+    ReadSpan span = make_span<ReadSpan>(r, readable_from(r, max_frames, lost_here));
     span.first_frame = r + cons_.stream_offset;
     span.lost_before = lost_here;
     return span;
@@ -171,16 +175,20 @@ class AudioRing {
   }
 
   /// [RT, consumer] Copies up to `max_frames` contiguous-in-time frames into `dst`; see read_acquire.
-  std::size_t read(float* dst, std::size_t max_frames, std::uint64_t* first_frame = nullptr,
-                   std::uint64_t* lost_before = nullptr) noexcept {
-    ReadSpan span = read_acquire(max_frames);
-    const std::size_t n1 = span.first.frames * channels_;
-    std::memcpy(dst, span.first.data, n1 * sizeof(float));
-    std::memcpy(dst + n1, span.second.data, span.second.frames * channels_ * sizeof(float));
-    read_release(span.frames());
-    if (first_frame) *first_frame = span.first_frame;
-    if (lost_before) *lost_before = span.lost_before;
-    return span.frames();
+  LOCUS_RING_INLINE std::size_t read(float* dst, std::size_t max_frames, std::uint64_t* first_frame = nullptr,
+                                     std::uint64_t* lost_before = nullptr) noexcept {
+    // Same steps as read_acquire + read_release, without building a span.
+    const std::uint64_t r = cons_.read.load(std::memory_order_relaxed);
+    std::uint64_t lost_here = 0;
+    const std::size_t n = readable_from(r, max_frames, lost_here);
+    const std::size_t start = static_cast<std::size_t>(r & mask_);
+    const std::size_t n1 = std::min(n, capacity_ - start);
+    copy_samples(dst, storage_.get() + start * channels_, n1 * channels_);
+    if (n1 != n) copy_samples(dst + n1 * channels_, storage_.get(), (n - n1) * channels_);
+    if (n != 0) cons_.read.store(r + n, std::memory_order_release);
+    if (first_frame) *first_frame = r + cons_.stream_offset;
+    if (lost_before) *lost_before = lost_here;
+    return n;
   }
 
   // ---------------------------------------------------------------- statistics
@@ -206,6 +214,80 @@ class AudioRing {
   struct FreeDeleter {
     void operator()(float* p) const noexcept { ::operator delete[](p, std::align_val_t{kCacheLine}); }
   };
+
+  /// write() while a loss is pending: the general path (a refused commit turns into lost frames).
+  std::size_t write_slow(const float* interleaved, std::size_t frames) noexcept {
+    WriteSpan span = write_acquire(frames);
+    const std::size_t n1 = span.first.frames * channels_;
+    copy_samples(span.first.data, interleaved, n1);
+    copy_samples(span.second.data, interleaved + n1, span.second.frames * channels_);
+    const std::size_t stored = write_commit(span.frames());  // a refused commit reports its own loss
+    write_lost(frames - span.frames());
+    return stored;
+  }
+
+  /// Consumer: frames readable from ring position `r` (at most `max_frames`), stopping at the next gap.
+  /// Gaps recorded at `r` itself are consumed: their frames are added to `lost_here` and to the
+  /// stream offset, so that `r + stream_offset` is the stream frame number of position `r`.
+  std::size_t readable_from(std::uint64_t r, std::size_t max_frames, std::uint64_t& lost_here) noexcept {
+    std::size_t available = static_cast<std::size_t>(cons_.write_cache - r);
+    if (available < max_frames) {
+      cons_.write_cache = prod_.write.load(std::memory_order_acquire);
+      available = static_cast<std::size_t>(cons_.write_cache - r);
+    }
+    // The write index was loaded (acquire) after every gap before it was queued, so any gap inside
+    // [r, write_cache) is visible to this pop.
+    if (cons_.has_gap || gaps_.try_pop(cons_.gap)) [[unlikely]] available = apply_gaps(r, available, lost_here);
+    return std::min(max_frames, available);
+  }
+
+  /// Consumer, a gap is in `cons_.gap`: consumes the gaps at `r`, limits `available` to the next one.
+  std::size_t apply_gaps(std::uint64_t r, std::size_t available, std::uint64_t& lost_here) noexcept {
+    cons_.has_gap = true;
+    do {
+      if (cons_.gap.ring_pos != r) {
+        available = std::min<std::size_t>(available, static_cast<std::size_t>(cons_.gap.ring_pos - r));
+        break;
+      }
+      lost_here += cons_.gap.frames;
+      cons_.has_gap = false;
+    } while (gaps_.try_pop(cons_.gap) && (cons_.has_gap = true));
+    cons_.stream_offset += lost_here;
+    return available;
+  }
+
+  /// Copies `samples` floats between non-overlapping buffers. Small copies (a few frames, the common
+  /// case for the empty or short second segment and for frame-by-frame use) are done inline with
+  /// fixed-size, possibly overlapping moves instead of a call into libc's memcpy.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+// With a runtime channel count GCC cannot rule out the wider branches for a caller's small buffer.
+#pragma GCC diagnostic ignored "-Warray-bounds"
+#pragma GCC diagnostic ignored "-Wstringop-overread"
+#pragma GCC diagnostic ignored "-Wstringop-overflow"
+#endif
+  static void copy_samples(float* dst, const float* src, std::size_t samples) noexcept {
+    auto* d = reinterpret_cast<unsigned char*>(dst);
+    const auto* s = reinterpret_cast<const unsigned char*>(src);
+    const std::size_t bytes = samples * sizeof(float);
+    if (bytes > 64) {
+      std::memcpy(d, s, bytes);
+    } else if (bytes >= 32) {
+      std::memcpy(d, s, 32);
+      std::memcpy(d + bytes - 32, s + bytes - 32, 32);
+    } else if (bytes >= 16) {
+      std::memcpy(d, s, 16);
+      std::memcpy(d + bytes - 16, s + bytes - 16, 16);
+    } else if (bytes >= 8) {
+      std::memcpy(d, s, 8);
+      std::memcpy(d + bytes - 8, s + bytes - 8, 8);
+    } else if (bytes != 0) {
+      std::memcpy(d, s, 4);  // bytes == 4: a single sample
+    }
+  }
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
   template <typename Span>
   Span make_span(std::uint64_t pos, std::size_t frames) const noexcept {

@@ -12,7 +12,7 @@
 namespace locus {
 
 /// {"type": "<event_type_name>", ...fields}; NaN fields are written as null.
-nlohmann::json event_to_json(const Event& event);
+nlohmann::ordered_json event_to_json(const Event& event);
 
 /// Writes events as JSON lines to a file or stdout ("-"). Each line is flushed when written, so a
 /// stop (Ctrl-C, SIGTERM) loses nothing already accepted. [main] (the dispatcher thread).
@@ -25,7 +25,7 @@ class JsonLinesWriter {
   JsonLinesWriter& operator=(const JsonLinesWriter&) = delete;
 
   void write(const Event& event);
-  void write(const nlohmann::json& object);
+  void write(const nlohmann::ordered_json& object);
   void flush();
   std::uint64_t lines() const noexcept { return lines_; }
 

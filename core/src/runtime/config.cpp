@@ -327,23 +327,27 @@ class ConfigChecker {
     if (const Entry* e = top->find("plugin_dirs")) plugin_dirs(*e);
     if (const Entry* e = top->find("output")) output(*e);
 
-    std::size_t device_entries = 0;
-    std::size_t localizer_entries = 0;
+    // Entries seen in devices and localizers (a list that is not a list counts as seen: it was reported).
+    std::size_t entries = 0;
     if (const Entry* e = top->find("devices")) {
       if (const auto items = c_.list(*e, "devices", "devices")) {
-        device_entries = items->size();
+        entries += items->size();
         for (std::size_t i = 0; i < items->size(); ++i) device((*items)[i], i, e->where());
+      } else {
+        ++entries;
       }
     }
     if (const Entry* e = top->find("localizers")) {
       if (const auto items = c_.list(*e, "localizers", "localizers")) {
-        localizer_entries = items->size();
+        entries += items->size();
         for (std::size_t i = 0; i < items->size(); ++i) {
           component((*items)[i], index_path("localizers", i), e->where(), LOCUS_PLUGIN_LOCALIZER, 0);
         }
+      } else {
+        ++entries;
       }
     }
-    if (device_entries == 0 && localizer_entries == 0) {
+    if (entries == 0) {
       const Entry* e = top->find("devices");
       c_.error(e != nullptr ? e->where() : top->mark(), "devices", "expected at least one device or one localizer");
     }

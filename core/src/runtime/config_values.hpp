@@ -40,7 +40,7 @@ std::optional<double> check_list_element(const ParamSpec& spec, const ScalarText
 /// Checks the length of a FloatList; "" when fine, else the message.
 std::string check_list_length(const ParamSpec& spec, std::size_t n);
 
-/// Levenshtein distance.
+/// Edit distance (Levenshtein with adjacent transpositions).
 std::size_t edit_distance(std::string_view a, std::string_view b);
 /// The candidate closest to `name` when it is plausibly a typo of it, else "".
 std::string closest(std::string_view name, const std::vector<std::string>& candidates);

@@ -9,11 +9,11 @@ namespace locus {
 
 namespace {
 
-nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+nlohmann::ordered_json num(double v) { return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr); }
 
 template <std::size_t N>
-nlohmann::json vec(const std::array<float, N>& a) {
-  nlohmann::json j = nlohmann::json::array();
+nlohmann::ordered_json vec(const std::array<float, N>& a) {
+  nlohmann::ordered_json j = nlohmann::ordered_json::array();
   for (float v : a) j.push_back(num(v));
   return j;
 }
@@ -25,7 +25,7 @@ std::string mac(const std::array<std::uint8_t, 6>& a) {
 }
 
 struct ToJson {
-  nlohmann::json& j;
+  nlohmann::ordered_json& j;
   void operator()(const AudioDetection& e) const {
     j["device"] = e.device.str();
     j["detector"] = e.detector.str();
@@ -33,7 +33,7 @@ struct ToJson {
     j["channel"] = e.channel;
     j["template"] = e.template_index;
     j["frame"] = e.frame;
-    j["t_s"] = e.sample_rate_hz > 0 ? num(e.frame / e.sample_rate_hz) : nlohmann::json(nullptr);
+    j["t_s"] = e.sample_rate_hz > 0 ? num(e.frame / e.sample_rate_hz) : nlohmann::ordered_json(nullptr);
     j["sample_rate_hz"] = e.sample_rate_hz;
     j["snr_db"] = num(e.snr_db);
     j["confidence"] = num(e.confidence);
@@ -44,15 +44,15 @@ struct ToJson {
     j["t_s"] = e.t_s;
     j["accel_mps2"] = vec(e.accel_mps2);
     j["gyro_radps"] = vec(e.gyro_radps);
-    j["mag_ut"] = e.has_mag ? vec(e.mag_ut) : nlohmann::json(nullptr);
+    j["mag_ut"] = e.has_mag ? vec(e.mag_ut) : nlohmann::ordered_json(nullptr);
   }
   void operator()(const BleAdvertisement& e) const {
     j["device"] = e.device.str();
     j["t_s"] = e.t_s;
     j["address"] = mac(e.address);
     j["rssi_dbm"] = num(e.rssi_dbm);
-    j["tx_power_dbm"] = e.has_tx_power ? num(e.tx_power_dbm) : nlohmann::json(nullptr);
-    j["channel"] = e.channel == 0 ? nlohmann::json(nullptr) : nlohmann::json(e.channel);
+    j["tx_power_dbm"] = e.has_tx_power ? num(e.tx_power_dbm) : nlohmann::ordered_json(nullptr);
+    j["channel"] = e.channel == 0 ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(e.channel);
   }
   void operator()(const RadioSync& e) const {
     j["device"] = e.device.str();
@@ -79,7 +79,7 @@ struct ToJson {
     j["frame"] = e.frame.str();
     j["target"] = e.target.str();
     j["t_s"] = e.t_s;
-    nlohmann::json p = nlohmann::json::array();
+    nlohmann::ordered_json p = nlohmann::ordered_json::array();
     for (int i = 0; i < e.dims && i < 3; ++i) p.push_back(num(e.position_m[static_cast<std::size_t>(i)]));
     j["position_m"] = p;
     j["direction_rad"] = num(e.direction_rad);
@@ -91,8 +91,8 @@ struct ToJson {
 
 }  // namespace
 
-nlohmann::json event_to_json(const Event& event) {
-  nlohmann::json j = nlohmann::json::object();
+nlohmann::ordered_json event_to_json(const Event& event) {
+  nlohmann::ordered_json j = nlohmann::ordered_json::object();
   j["type"] = std::string(event_type_name(type_of(event)));
   std::visit(ToJson{j}, event);
   return j;
@@ -115,8 +115,8 @@ JsonLinesWriter::~JsonLinesWriter() {
 
 void JsonLinesWriter::write(const Event& event) { write(event_to_json(event)); }
 
-void JsonLinesWriter::write(const nlohmann::json& object) {
-  const std::string line = object.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
+void JsonLinesWriter::write(const nlohmann::ordered_json& object) {
+  const std::string line = object.dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace) + "\n";
   std::fwrite(line.data(), 1, line.size(), file_);
   std::fflush(file_);
   ++lines_;

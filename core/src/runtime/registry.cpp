@@ -67,7 +67,7 @@ std::string schema_problem(const ParamSchema& schema) {
     }
     if (spec.required()) continue;
     if (!default_matches(spec)) {
-      return where + " has a default that is not a " + std::string(param_type_name(spec.type));
+      return where + " has a default that does not match its type (" + std::string(param_type_name(spec.type)) + ")";
     }
     bool ok = true;
     if (const auto* d = std::get_if<double>(&spec.default_value)) ok = in_range(spec, *d);

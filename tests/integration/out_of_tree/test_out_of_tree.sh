@@ -21,6 +21,7 @@ WRONG_ABI_DIR=${4:-}
 
 TMP=$(mktemp -d "${TMPDIR:-/tmp}/locus-out-of-tree.XXXXXX")
 trap 'rm -rf "$TMP"' EXIT
+TMP=$(cd "$TMP" && pwd)  # normalised (the CLI prints plugin origins as dir/name)
 PREFIX=$TMP/prefix
 PLUGIN_BUILD=$TMP/plugin-build
 PLUGINS=$TMP/plugins
@@ -53,9 +54,20 @@ for h in plugin.hpp detector.hpp localizer.hpp params.hpp events.hpp host.hpp; d
   [ -f "$PREFIX/include/locus/$h" ] || fail "header locus/$h not installed"
 done
 ls "$PREFIX"/lib*/liblocus.so >/dev/null 2>&1 || fail "liblocus.so not installed"
-if grep -E -i -l 'yaml|spdlog|fmt::|nlohmann|CLI11|fftw|sndfile|jack|GTest|benchmark' "$CONFIG_DIR"/*.cmake; then
-  fail "the installed CMake package refers to a private dependency (see the files listed above)"
+PRIVATE_DEPS='yaml|spdlog|fmt::|nlohmann|CLI11|fftw|sndfile|jack|Eigen|Boost|GTest|benchmark'
+if grep -v '^[[:space:]]*#' "$CONFIG_DIR"/*.cmake | grep -E -i "$PRIVATE_DEPS"; then
+  fail "the installed CMake package refers to a private dependency (lines above)"
 fi
+# Every installed header compiles on its own with nothing but the prefix on the include path.
+CXX_BIN=${CXX:-c++}
+for h in "$PREFIX"/include/locus/*; do
+  if grep -E -i -n "#include <($PRIVATE_DEPS)" "$h"; then
+    fail "installed header $h includes a private dependency"
+  fi
+  echo "#include <locus/$(basename "$h")>" >"$TMP/header_check.cpp"
+  run "installed header locus/$(basename "$h") does not compile on its own" \
+    "$CXX_BIN" -std=c++20 -fsyntax-only -I"$PREFIX/include" "$TMP/header_check.cpp"
+done
 
 # ------------------------------------------------------------------------------ build the example plugin
 step "configure examples/out-of-tree-plugin against $PREFIX"

@@ -1,0 +1,208 @@
+// The in-memory registry: descriptor validation, sources, lookups and factories (dlopen is tested
+// with the plugin loader).
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "locus/registry.hpp"
+
+namespace locus {
+namespace {
+
+class NullDetector : public Detector {
+ public:
+  void configure(const StreamInfo&, const Params&, HostContext&) override {}
+};
+
+class NullLocalizer : public Localizer {
+ public:
+  void configure(const Params&, HostContext&) override {}
+  std::vector<EventType> subscriptions() const override { return {}; }
+  void on_event(const Event&, Publisher&) override {}
+};
+
+class NullSource : public AudioSource {
+ public:
+  void open(const Params&, HostContext&) override {}
+  std::uint32_t channels() const override { return 1; }
+  double sample_rate_hz() const override { return 44100.0; }
+  bool live() const override { return false; }
+  void start(AudioRing&) override {}
+  void stop() override {}
+  bool finished() const noexcept override { return true; }
+};
+
+const ParamSchema* empty_schema() {
+  static const ParamSchema schema;
+  return &schema;
+}
+const ParamSchema* bad_default_schema() {
+  static const ParamSchema schema = [] {
+    ParamSpec s;
+    s.key = "n";
+    s.type = ParamType::Int;
+    s.default_value = 0.5;
+    return ParamSchema{s};
+  }();
+  return &schema;
+}
+const ParamSchema* null_schema() { return nullptr; }
+Detector* make_detector() { return new NullDetector; }
+Localizer* make_localizer() { return new NullLocalizer; }
+
+locus_plugin_descriptor detector_descriptor(const char* name) {
+  return locus_plugin_descriptor{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_DETECTOR, name, "1.0", "test detector",
+                                 kInputAudio, &empty_schema, &make_detector, nullptr};
+}
+locus_plugin_descriptor localizer_descriptor(const char* name) {
+  return locus_plugin_descriptor{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_LOCALIZER, name, "1.0", "test localizer",
+                                 0, &empty_schema, nullptr, &make_localizer};
+}
+
+std::string add_error(Registry& r, const locus_plugin_descriptor* d, const std::string& origin = "built-in") {
+  try {
+    r.add_plugin(d, origin);
+  } catch (const PluginLoadError& e) {
+    return e.what();
+  }
+  return "(accepted)";
+}
+
+TEST(Registry, AddsAndFindsPlugins) {
+  static const auto det = detector_descriptor("onset");
+  static const auto loc = localizer_descriptor("tri");
+  Registry r;
+  r.add_plugin(&det);
+  r.add_plugin(&loc, "/opt/plugins/libtri.so");
+  EXPECT_EQ(r.find_plugin("onset"), &det);
+  EXPECT_EQ(r.find_plugin("tri"), &loc);
+  EXPECT_EQ(r.find_plugin("nope"), nullptr);
+  ASSERT_EQ(r.plugins().size(), 2u);
+  EXPECT_EQ(r.plugins()[0].origin, "built-in");
+  EXPECT_EQ(r.plugins()[1].origin, "/opt/plugins/libtri.so");
+}
+
+TEST(Registry, RefusesDuplicateName) {
+  static const auto a = detector_descriptor("onset");
+  static const auto b = localizer_descriptor("onset");
+  Registry r;
+  r.add_plugin(&a);
+  EXPECT_EQ(add_error(r, &b, "/p/libx.so"),
+            "cannot add plugin 'onset' (/p/libx.so): the name is already registered (built-in)");
+  EXPECT_EQ(r.plugins().size(), 1u);
+}
+
+TEST(Registry, RefusesAbiMismatchWithoutReadingOtherFields) {
+  auto d = detector_descriptor("onset");
+  d.abi_version = LOCUS_PLUGIN_ABI_VERSION + 1;
+  Registry r;
+  EXPECT_EQ(add_error(r, &d, "/p/libold.so"),
+            "cannot add plugin (/p/libold.so): built for plugin ABI version " +
+                std::to_string(LOCUS_PLUGIN_ABI_VERSION + 1) + ", this host uses version " +
+                std::to_string(LOCUS_PLUGIN_ABI_VERSION) + "; rebuild the plugin against this Locus");
+}
+
+TEST(Registry, RefusesBadNames) {
+  Registry r;
+  auto d = detector_descriptor(nullptr);
+  EXPECT_EQ(add_error(r, &d), "cannot add plugin (built-in): the descriptor has no name");
+  d = detector_descriptor("Onset-2");
+  EXPECT_EQ(add_error(r, &d), "cannot add plugin 'Onset-2' (built-in): invalid name (a plugin name is [a-z0-9_]+)");
+  d = detector_descriptor("");
+  EXPECT_EQ(add_error(r, &d), "cannot add plugin '' (built-in): invalid name (a plugin name is [a-z0-9_]+)");
+  d = detector_descriptor("a_very_long_plugin_name_over_31_chars");
+  EXPECT_EQ(add_error(r, &d),
+            "cannot add plugin 'a_very_long_plugin_name_over_31_chars' (built-in): name longer than 31 characters");
+  EXPECT_EQ(add_error(r, nullptr), "cannot add plugin (built-in): null descriptor");
+  EXPECT_TRUE(r.plugins().empty());
+}
+
+TEST(Registry, RefusesBadKindAndMissingFactory) {
+  Registry r;
+  auto d = detector_descriptor("onset");
+  d.kind = 7;
+  EXPECT_EQ(add_error(r, &d), "cannot add plugin 'onset' (built-in): unknown kind 7 (1 = detector, 2 = localizer)");
+  d = detector_descriptor("onset");
+  d.create_detector = nullptr;
+  EXPECT_EQ(add_error(r, &d), "cannot add plugin 'onset' (built-in): a detector without a create_detector factory");
+  d = localizer_descriptor("tri");
+  d.create_localizer = nullptr;
+  EXPECT_EQ(add_error(r, &d), "cannot add plugin 'tri' (built-in): a localizer without a create_localizer factory");
+}
+
+TEST(Registry, RefusesMissingOrBadSchema) {
+  Registry r;
+  auto d = detector_descriptor("onset");
+  d.schema = nullptr;
+  EXPECT_EQ(add_error(r, &d), "cannot add plugin 'onset' (built-in): no schema function");
+  d.schema = &null_schema;
+  EXPECT_EQ(add_error(r, &d), "cannot add plugin 'onset' (built-in): schema() returned nullptr");
+  d.schema = &bad_default_schema;
+  EXPECT_EQ(add_error(r, &d), "cannot add plugin 'onset' (built-in): bad schema: parameter 'n' has a default that "
+                              "does not match its type (integer)");
+}
+
+TEST(Registry, CheckPluginValidatesWithoutAdding) {
+  static const auto d = detector_descriptor("onset");
+  Registry r;
+  EXPECT_NO_THROW(r.check_plugin(&d, "x.so"));
+  EXPECT_TRUE(r.plugins().empty());
+  r.add_plugin(&d);
+  EXPECT_THROW(r.check_plugin(&d, "x.so"), PluginLoadError);
+}
+
+TEST(Registry, CreatesInstancesOfTheRightKind) {
+  static const auto det = detector_descriptor("onset");
+  static const auto loc = localizer_descriptor("tri");
+  Registry r;
+  r.add_plugin(&det);
+  r.add_plugin(&loc);
+  EXPECT_NE(dynamic_cast<NullDetector*>(r.create_detector("onset").get()), nullptr);
+  EXPECT_NE(dynamic_cast<NullLocalizer*>(r.create_localizer("tri").get()), nullptr);
+  try {
+    r.create_detector("tri");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "plugin 'tri' is a localizer, not a detector");
+  }
+  try {
+    r.create_localizer("onset");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "plugin 'onset' is a detector, not a localizer");
+  }
+  try {
+    r.create_detector("nope");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "unknown plugin 'nope'");
+  }
+}
+
+TEST(Registry, Sources) {
+  Registry r;
+  r.add_source(SourceDescriptor{"null", "silence", {}, [] { return std::make_unique<NullSource>(); }});
+  ASSERT_NE(r.find_source("null"), nullptr);
+  EXPECT_EQ(r.find_source("null")->description, "silence");
+  EXPECT_EQ(r.find_source("alsa"), nullptr);
+  EXPECT_NE(r.create_source("null"), nullptr);
+  try {
+    r.create_source("alsa");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "unknown audio source 'alsa'");
+  }
+  try {
+    r.add_source(SourceDescriptor{"null", "again", {}, [] { return std::make_unique<NullSource>(); }});
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "audio source 'null' is already registered");
+  }
+  EXPECT_THROW(r.add_source(SourceDescriptor{"nofactory", "", {}, nullptr}), std::invalid_argument);
+  EXPECT_EQ(r.sources().size(), 1u);
+}
+
+}  // namespace
+}  // namespace locus

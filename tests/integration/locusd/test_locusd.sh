@@ -1,0 +1,68 @@
+#!/usr/bin/env bash
+# usage: test_locusd.sh BIN_DIR SOURCE_DIR
+set -uo pipefail
+bin="$1"; src="$2"
+tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+fails=0; passes=0
+ok() { echo "ok   - $*"; passes=$((passes + 1)); }
+fail() { echo "FAIL - $*"; fails=$((fails + 1)); }
+
+# 1. The demo config is valid and runs to the end at full speed with the expected detections:
+#    A has 2 channels, B 1, each hears 5 chirps in 5 s.
+sed 's/pace: realtime/pace: max/' "$src/config/demo.yaml" > "$tmp/fast.yaml"
+"$bin/locus" check-config "$tmp/fast.yaml" > "$tmp/check.out" 2>&1 && ok "check-config accepts the demo" || { fail "check-config on demo"; cat "$tmp/check.out"; }
+"$bin/locusd" --config "$tmp/fast.yaml" > "$tmp/fast.jsonl" 2> "$tmp/fast.err"
+status=$?
+[ $status -eq 0 ] && ok "locusd exits 0 at the end of a finite stream" || { fail "locusd exit $status"; cat "$tmp/fast.err"; }
+n=$(grep -c '"type":"audio_detection"' "$tmp/fast.jsonl")
+[ "$n" -eq 15 ] && ok "15 detections (5 chirps x 3 channels)" || fail "expected 15 detections, got $n"
+python3 - "$tmp/fast.jsonl" <<'PY' && ok "every line is a JSON object with a type" || fail "malformed JSON lines"
+import json, sys
+for line in open(sys.argv[1]):
+    obj = json.loads(line)
+    assert isinstance(obj, dict) and "type" in obj, line
+PY
+
+# 2. A bad config: every error reported with file:line:column, exit status 2, nothing run.
+cat > "$tmp/bad.yaml" <<'YAML'
+sample_rate_hz: 44100
+output: {path: "-", events: [estimate, nonsense]}
+devices:
+  - id: A
+    audio:
+      source: synth
+      params: {channels: 0, treshold: 3}
+    detectors:
+      - plugin: no_such_plugin
+YAML
+"$bin/locusd" --config "$tmp/bad.yaml" > "$tmp/bad.out" 2> "$tmp/bad.err"
+status=$?
+[ $status -eq 2 ] && ok "bad config exits 2" || fail "bad config exit $status"
+for pattern in "bad.yaml:2:[0-9]*:.*nonsense" "bad.yaml:7:[0-9]*:.*channels" "bad.yaml:7:[0-9]*:.*treshold" "bad.yaml:9:[0-9]*:.*no_such_plugin"; do
+  grep -q "$pattern" "$tmp/bad.err" && ok "error reported: $pattern" || { fail "missing error: $pattern"; cat "$tmp/bad.err"; }
+done
+[ ! -s "$tmp/bad.out" ] && ok "nothing ran" || fail "output written despite bad config"
+"$bin/locus" check-config "$tmp/bad.yaml" > /dev/null 2>&1; s=$?
+[ $s -eq 2 ] && ok "locus check-config exits 2 on a bad config" || fail "check-config exit $s"
+"$bin/locusd" --config "$tmp/missing.yaml" > /dev/null 2> "$tmp/missing.err"; s=$?
+[ $s -eq 2 ] && grep -q "missing.yaml" "$tmp/missing.err" && ok "missing config: exit 2 naming the file" || fail "missing config: exit $s"
+"$bin/locusd" --no-such-flag > /dev/null 2>&1; s=$?
+[ $s -eq 2 ] && ok "bad usage exits 2" || fail "bad usage exit $s"
+
+# 3. SIGTERM and SIGINT stop a real-time node cleanly: exit 0, every line written is complete.
+sed 's/duration_s: 5.0/duration_s: 600.0/' "$src/config/demo.yaml" > "$tmp/long.yaml"
+for sig in TERM INT; do
+  "$bin/locusd" --config "$tmp/long.yaml" --output "$tmp/long-$sig.jsonl" 2> "$tmp/long-$sig.err" &
+  pid=$!
+  sleep 2.2
+  kill -$sig $pid
+  wait $pid; s=$?
+  [ $s -eq 0 ] && ok "SIG$sig: exit 0" || { fail "SIG$sig: exit $s"; cat "$tmp/long-$sig.err"; }
+  grep -q "stopping" "$tmp/long-$sig.err" && ok "SIG$sig: logged the stop" || fail "SIG$sig: no stop message"
+  n=$(grep -c '"type":"audio_detection"' "$tmp/long-$sig.jsonl")
+  [ "$n" -ge 6 ] && ok "SIG$sig: $n detections flushed from ~2 s of audio" || fail "SIG$sig: only $n detections"
+  python3 -c "import json,sys; [json.loads(l) for l in open(sys.argv[1])]" "$tmp/long-$sig.jsonl" && ok "SIG$sig: output complete" || fail "SIG$sig: truncated output"
+done
+
+echo "$passes passed, $fails failed"
+[ $fails -eq 0 ]
