@@ -54,13 +54,13 @@ sed 's/duration_s: 5.0/duration_s: 600.0/' "$src/config/demo.yaml" > "$tmp/long.
 for sig in TERM INT; do
   "$bin/locusd" --config "$tmp/long.yaml" --output "$tmp/long-$sig.jsonl" 2> "$tmp/long-$sig.err" &
   pid=$!
-  sleep 2.2
+  sleep 3
   kill -$sig $pid
   wait $pid; s=$?
   [ $s -eq 0 ] && ok "SIG$sig: exit 0" || { fail "SIG$sig: exit $s"; cat "$tmp/long-$sig.err"; }
   grep -q "stopping" "$tmp/long-$sig.err" && ok "SIG$sig: logged the stop" || fail "SIG$sig: no stop message"
   n=$(grep -c '"type":"audio_detection"' "$tmp/long-$sig.jsonl")
-  [ "$n" -ge 6 ] && ok "SIG$sig: $n detections flushed from ~2 s of audio" || fail "SIG$sig: only $n detections"
+  [ "$n" -ge 6 ] && ok "SIG$sig: $n detections flushed from ~3 s of audio" || fail "SIG$sig: only $n detections"
   python3 -c "import json,sys; [json.loads(l) for l in open(sys.argv[1])]" "$tmp/long-$sig.jsonl" && ok "SIG$sig: output complete" || fail "SIG$sig: truncated output"
 done
 
