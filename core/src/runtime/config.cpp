@@ -141,7 +141,7 @@ class Checker {
     Section section(node.Mark());
     std::map<std::string, int, std::less<>> first_line;
     for (auto it = node.begin(); it != node.end(); ++it) {
-      const YAML::Node& k = it->first;
+      const YAML::Node k = it->first;
       if (!k.IsScalar()) {
         error(k.Mark(), path, "expected a key name, got " + got(k));
         continue;
