@@ -56,7 +56,10 @@ struct LocusRing {
     std::memcpy(span.second.data, src + span.first.frames * kChannels, span.second.frames * kChannels * sizeof(float));
     return ring.write_commit(span.frames());
   }
-  // Block round trips use the copying helper the way an audio callback would.
+  // Frame round trips use the per-frame API; block round trips the copying helper, the way an audio
+  // callback would.
+  INLINE std::size_t push_frame(const float* src) { return ring.try_push_frame(src); }
+  INLINE std::size_t pop_frame(float* dst) { return ring.try_pop_frame(dst); }
   INLINE std::size_t write_all(const float* src, std::size_t n) { return ring.write(src, n); }
   INLINE std::size_t read(float* dst, std::size_t n) { return ring.read(dst, n); }
 };
@@ -67,6 +70,8 @@ struct BoostRing {
   INLINE std::size_t write(const float* src, std::size_t n) { return q.push(reinterpret_cast<const StereoFrame*>(src), n); }
   INLINE std::size_t write_all(const float* src, std::size_t n) { return write(src, n); }
   INLINE std::size_t read(float* dst, std::size_t n) { return q.pop(reinterpret_cast<StereoFrame*>(dst), n); }
+  INLINE std::size_t push_frame(const float* src) { return q.push(*reinterpret_cast<const StereoFrame*>(src)); }
+  INLINE std::size_t pop_frame(float* dst) { return q.pop(*reinterpret_cast<StereoFrame*>(dst)); }
 };
 
 struct JackRing {
@@ -82,6 +87,8 @@ struct JackRing {
     return jack_ringbuffer_write(rb, reinterpret_cast<const char*>(src), frames * kFrameBytes) / kFrameBytes;
   }
   INLINE std::size_t write_all(const float* src, std::size_t n) { return write(src, n); }
+  INLINE std::size_t push_frame(const float* src) { return write(src, 1); }
+  INLINE std::size_t pop_frame(float* dst) { return read(dst, 1); }
   INLINE std::size_t read(float* dst, std::size_t n) {
     const std::size_t avail = jack_ringbuffer_read_space(rb) / kFrameBytes;
     const std::size_t frames = std::min(n, avail);
@@ -109,8 +116,8 @@ void BM_Frame(benchmark::State& state) {
   const StereoFrame in{0.5f, -0.5f};
   StereoFrame out{};
   for (auto _ : state) {
-    const std::size_t w = ring->write_all(&in.left, 1);
-    const std::size_t r = ring->read(&out.left, 1);
+    const std::size_t w = ring->push_frame(&in.left);
+    const std::size_t r = ring->pop_frame(&out.left);
     benchmark::DoNotOptimize(w + r);
     benchmark::DoNotOptimize(out);
     if (w + r != 2) state.SkipWithError("ring refused a frame");

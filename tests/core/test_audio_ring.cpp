@@ -505,3 +505,54 @@ TEST(AudioRing, TwoThreadsLiveProducerAccountsForEveryFrame) {
 }
 
 }  // namespace
+
+namespace locus {
+namespace {
+
+TEST(AudioRingFrameApi, PushPopFramesKeepValuesOrderAndStreamNumbers) {
+  AudioRing ring(3, 8, 4, 1000);
+  float f[3];
+  std::uint64_t frame = 0, lost = 0;
+  EXPECT_FALSE(ring.try_pop_frame(f, &frame, &lost));
+  for (int i = 0; i < 8; ++i) {
+    const float in[3] = {float(i), float(i) + 0.5f, -float(i)};
+    ASSERT_TRUE(ring.try_push_frame(in));
+  }
+  const float extra[3] = {9, 9, 9};
+  EXPECT_FALSE(ring.try_push_frame(extra));  // full: nothing stored
+  ring.write_lost(1);                        // a live producer reports it
+  for (int i = 0; i < 8; ++i) {
+    ASSERT_TRUE(ring.try_pop_frame(f, &frame, &lost));
+    EXPECT_EQ(f[0], float(i));
+    EXPECT_EQ(f[1], float(i) + 0.5f);
+    EXPECT_EQ(f[2], -float(i));
+    EXPECT_EQ(frame, 1000u + i);
+    EXPECT_EQ(lost, 0u);
+  }
+  const float next[3] = {42, 43, 44};
+  ASSERT_TRUE(ring.try_push_frame(next));  // goes through the pending-loss path
+  ASSERT_TRUE(ring.try_pop_frame(f, &frame, &lost));
+  EXPECT_EQ(f[0], 42.0f);
+  EXPECT_EQ(frame, 1009u);  // frame 1008 was lost
+  EXPECT_EQ(lost, 1u);
+  EXPECT_FALSE(ring.try_pop_frame(f, &frame, &lost));
+}
+
+TEST(AudioRingFrameApi, FramePopSeesAGapQueuedAfterItsLastRefresh) {
+  AudioRing ring(1, 16);
+  float x = 1;
+  ASSERT_TRUE(ring.try_push_frame(&x));
+  float y;
+  std::uint64_t frame = 0, lost = 0;
+  ASSERT_TRUE(ring.try_pop_frame(&y, &frame, &lost));
+  ring.write_lost(5);  // loss at the position the consumer has reached
+  x = 2;
+  ASSERT_TRUE(ring.try_push_frame(&x));
+  ASSERT_TRUE(ring.try_pop_frame(&y, &frame, &lost));
+  EXPECT_EQ(y, 2.0f);
+  EXPECT_EQ(frame, 6u);
+  EXPECT_EQ(lost, 5u);
+}
+
+}  // namespace
+}  // namespace locus

@@ -152,6 +152,22 @@ class AudioRing {
     return n;
   }
 
+  /// [RT, producer] Stores one interleaved frame (channels() floats) if there is room; returns false
+  /// and stores nothing when the ring is full (a live producer then reports it with write_lost(1)).
+  /// The lean path for frame-by-frame producers.
+  LOCUS_RING_INLINE bool try_push_frame(const float* frame) noexcept {
+    if (prod_.pending_lost != 0) [[unlikely]] return write_slow_frame(frame);
+    const std::uint64_t w = prod_.write.load(std::memory_order_relaxed);
+    if (w - prod_.read_cache >= capacity_) {
+      prod_.read_cache = cons_.read.load(std::memory_order_acquire);
+      if (w - prod_.read_cache >= capacity_) return false;
+    }
+    copy_samples(storage_.get() + static_cast<std::size_t>(w & mask_) * channels_, frame, channels_);
+    prod_.write.store(w + 1, std::memory_order_release);
+    ++prod_.stream_frame;
+    return true;
+  }
+
   /// [RT, producer] Stream frame number of the next frame the producer will write or lose.
   std::uint64_t producer_frame() const noexcept { return prod_.stream_frame; }
 
@@ -191,6 +207,26 @@ class AudioRing {
     return n;
   }
 
+  /// [RT, consumer] Takes one frame into `frame` (channels() floats); false when none is readable.
+  /// `stream_frame` (optional) receives its stream frame number; frames lost before it, if any, are
+  /// reported through `lost_before` (optional), exactly as read() does.
+  LOCUS_RING_INLINE bool try_pop_frame(float* frame, std::uint64_t* stream_frame = nullptr,
+                                       std::uint64_t* lost_before = nullptr) noexcept {
+    const std::uint64_t r = cons_.read.load(std::memory_order_relaxed);
+    if (r == cons_.write_cache) {
+      // Refresh, and poll the gap queue as readable_from() does on a refresh.
+      cons_.write_cache = prod_.write.load(std::memory_order_acquire);
+      if (!cons_.has_gap && gaps_.try_pop(cons_.gap)) [[unlikely]] cons_.has_gap = true;
+      if (r == cons_.write_cache && !cons_.has_gap) return false;
+    }
+    if (cons_.has_gap) [[unlikely]] return read(frame, 1, stream_frame, lost_before) == 1;  // the general path
+    copy_samples(frame, storage_.get() + static_cast<std::size_t>(r & mask_) * channels_, channels_);
+    cons_.read.store(r + 1, std::memory_order_release);
+    if (stream_frame) *stream_frame = r + cons_.stream_offset;
+    if (lost_before) *lost_before = 0;
+    return true;
+  }
+
   // ---------------------------------------------------------------- statistics
 
   /// [any] Frames readable now (approximate while the producer runs).
@@ -226,18 +262,32 @@ class AudioRing {
     return stored;
   }
 
+  bool write_slow_frame(const float* frame) noexcept {
+    WriteSpan span = write_acquire(1);
+    if (span.frames() == 0) return false;
+    copy_samples(span.first.data, frame, channels_);
+    // A refused commit (gap queue full) has reported the frame lost: to the caller it was stored.
+    write_commit(1);
+    return true;
+  }
+
   /// Consumer: frames readable from ring position `r` (at most `max_frames`), stopping at the next gap.
   /// Gaps recorded at `r` itself are consumed: their frames are added to `lost_here` and to the
   /// stream offset, so that `r + stream_offset` is the stream frame number of position `r`.
-  std::size_t readable_from(std::uint64_t r, std::size_t max_frames, std::uint64_t& lost_here) noexcept {
+  LOCUS_RING_INLINE std::size_t readable_from(std::uint64_t r, std::size_t max_frames, std::uint64_t& lost_here) noexcept {
     std::size_t available = static_cast<std::size_t>(cons_.write_cache - r);
+    bool refreshed = false;
     if (available < max_frames) {
       cons_.write_cache = prod_.write.load(std::memory_order_acquire);
       available = static_cast<std::size_t>(cons_.write_cache - r);
+      refreshed = true;
     }
-    // The write index was loaded (acquire) after every gap before it was queued, so any gap inside
-    // [r, write_cache) is visible to this pop.
-    if (cons_.has_gap || gaps_.try_pop(cons_.gap)) [[unlikely]] available = apply_gaps(r, available, lost_here);
+    // A gap at ring position p is queued before the write index passes p, so every gap inside
+    // [r, write_cache) was visible when write_cache was loaded (acquire). Hence the gap queue needs
+    // polling only on a refresh; a popped gap is held until reached, and applying it pops the next.
+    // (A gap exactly at write_cache is found by the refresh that happens once r reaches it.)
+    if (cons_.has_gap || (refreshed && gaps_.try_pop(cons_.gap))) [[unlikely]]
+      available = apply_gaps(r, available, lost_here);
     return std::min(max_frames, available);
   }
 
@@ -266,23 +316,25 @@ class AudioRing {
 #pragma GCC diagnostic ignored "-Wstringop-overread"
 #pragma GCC diagnostic ignored "-Wstringop-overflow"
 #endif
-  static void copy_samples(float* dst, const float* src, std::size_t samples) noexcept {
+  LOCUS_RING_INLINE static void copy_samples(float* dst, const float* src, std::size_t samples) noexcept {
     auto* d = reinterpret_cast<unsigned char*>(dst);
     const auto* s = reinterpret_cast<const unsigned char*>(src);
     const std::size_t bytes = samples * sizeof(float);
-    if (bytes > 64) {
-      std::memcpy(d, s, bytes);
-    } else if (bytes >= 32) {
-      std::memcpy(d, s, 32);
-      std::memcpy(d + bytes - 32, s + bytes - 32, 32);
-    } else if (bytes >= 16) {
+    if (bytes <= 16) {
+      if (bytes >= 8) {
+        std::memcpy(d, s, 8);
+        std::memcpy(d + bytes - 8, s + bytes - 8, 8);
+      } else if (bytes != 0) {
+        std::memcpy(d, s, 4);  // bytes == 4: a single sample
+      }
+    } else if (bytes <= 32) {
       std::memcpy(d, s, 16);
       std::memcpy(d + bytes - 16, s + bytes - 16, 16);
-    } else if (bytes >= 8) {
-      std::memcpy(d, s, 8);
-      std::memcpy(d + bytes - 8, s + bytes - 8, 8);
-    } else if (bytes != 0) {
-      std::memcpy(d, s, 4);  // bytes == 4: a single sample
+    } else if (bytes <= 64) {
+      std::memcpy(d, s, 32);
+      std::memcpy(d + bytes - 32, s + bytes - 32, 32);
+    } else {
+      std::memcpy(d, s, bytes);
     }
   }
 #if defined(__GNUC__) && !defined(__clang__)
