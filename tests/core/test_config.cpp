@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "support/test_host.hpp"
 #include "locus/config.hpp"
 
 namespace locus {
@@ -19,29 +20,6 @@ namespace {
 namespace fs = std::filesystem;
 
 // ------------------------------------------------------------------------------ fakes
-
-class FakeDetector : public Detector {
- public:
-  void configure(const StreamInfo&, const Params&, HostContext&) override {}
-};
-
-class FakeLocalizer : public Localizer {
- public:
-  void configure(const Params&, HostContext&) override {}
-  std::vector<EventType> subscriptions() const override { return {EventType::AudioDetection}; }
-  void on_event(const Event&, Publisher&) override {}
-};
-
-class FakeSource : public AudioSource {
- public:
-  void open(const Params&, HostContext&) override {}
-  std::uint32_t channels() const override { return 1; }
-  double sample_rate_hz() const override { return 44100.0; }
-  bool live() const override { return false; }
-  void start(AudioRing&) override {}
-  void stop() override {}
-  bool finished() const noexcept override { return true; }
-};
 
 /// A ParamSpec without designated initializers (which warn about every member left out).
 ParamSpec spec(std::string key, ParamType type, ParamValue def, std::optional<double> min = std::nullopt,
@@ -80,8 +58,8 @@ const ParamSchema* tri_schema() {
   static const ParamSchema schema = {spec("max_range_m", ParamType::Float, 10.0, 0.0, 100.0, "m")};
   return &schema;
 }
-Detector* make_detector() { return new FakeDetector; }
-Localizer* make_localizer() { return new FakeLocalizer; }
+Detector* make_detector() { return new test::NullDetector; }
+Localizer* make_localizer() { return new test::NullLocalizer; }
 
 const locus_plugin_descriptor kOnset{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_DETECTOR, "onset", "1", "onsets",
                                      kInputAudio, &onset_schema, &make_detector, nullptr};
@@ -100,7 +78,7 @@ class ConfigTest : public ::testing::Test {
         "synth", "test tones",
         {spec("frequency_hz", ParamType::Float, 1000.0, 1.0, 20000.0, "Hz"),
          spec("channels", ParamType::Int, std::int64_t{1}, 1.0, 8.0)},
-        [] { return std::make_unique<FakeSource>(); }});
+        [] { return std::make_unique<test::NullSource>(); }});
   }
 
   std::vector<ConfigError> errors(std::string_view yaml) {

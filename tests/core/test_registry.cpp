@@ -6,33 +6,11 @@
 #include <stdexcept>
 #include <string>
 
+#include "support/test_host.hpp"
 #include "locus/registry.hpp"
 
 namespace locus {
 namespace {
-
-class NullDetector : public Detector {
- public:
-  void configure(const StreamInfo&, const Params&, HostContext&) override {}
-};
-
-class NullLocalizer : public Localizer {
- public:
-  void configure(const Params&, HostContext&) override {}
-  std::vector<EventType> subscriptions() const override { return {}; }
-  void on_event(const Event&, Publisher&) override {}
-};
-
-class NullSource : public AudioSource {
- public:
-  void open(const Params&, HostContext&) override {}
-  std::uint32_t channels() const override { return 1; }
-  double sample_rate_hz() const override { return 44100.0; }
-  bool live() const override { return false; }
-  void start(AudioRing&) override {}
-  void stop() override {}
-  bool finished() const noexcept override { return true; }
-};
 
 const ParamSchema* empty_schema() {
   static const ParamSchema schema;
@@ -49,8 +27,8 @@ const ParamSchema* bad_default_schema() {
   return &schema;
 }
 const ParamSchema* null_schema() { return nullptr; }
-Detector* make_detector() { return new NullDetector; }
-Localizer* make_localizer() { return new NullLocalizer; }
+Detector* make_detector() { return new test::NullDetector; }
+Localizer* make_localizer() { return new test::NullLocalizer; }
 
 locus_plugin_descriptor detector_descriptor(const char* name) {
   return locus_plugin_descriptor{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_DETECTOR, name, "1.0", "test detector",
@@ -159,8 +137,8 @@ TEST(Registry, CreatesInstancesOfTheRightKind) {
   Registry r;
   r.add_plugin(&det);
   r.add_plugin(&loc);
-  EXPECT_NE(dynamic_cast<NullDetector*>(r.create_detector("onset").get()), nullptr);
-  EXPECT_NE(dynamic_cast<NullLocalizer*>(r.create_localizer("tri").get()), nullptr);
+  EXPECT_NE(dynamic_cast<test::NullDetector*>(r.create_detector("onset").get()), nullptr);
+  EXPECT_NE(dynamic_cast<test::NullLocalizer*>(r.create_localizer("tri").get()), nullptr);
   try {
     r.create_detector("tri");
     FAIL();
@@ -183,7 +161,7 @@ TEST(Registry, CreatesInstancesOfTheRightKind) {
 
 TEST(Registry, Sources) {
   Registry r;
-  r.add_source(SourceDescriptor{"null", "silence", {}, [] { return std::make_unique<NullSource>(); }});
+  r.add_source(SourceDescriptor{"null", "silence", {}, [] { return std::make_unique<test::NullSource>(); }});
   ASSERT_NE(r.find_source("null"), nullptr);
   EXPECT_EQ(r.find_source("null")->description, "silence");
   EXPECT_EQ(r.find_source("alsa"), nullptr);
@@ -195,7 +173,7 @@ TEST(Registry, Sources) {
     EXPECT_STREQ(e.what(), "unknown audio source 'alsa'");
   }
   try {
-    r.add_source(SourceDescriptor{"null", "again", {}, [] { return std::make_unique<NullSource>(); }});
+    r.add_source(SourceDescriptor{"null", "again", {}, [] { return std::make_unique<test::NullSource>(); }});
     FAIL();
   } catch (const std::invalid_argument& e) {
     EXPECT_STREQ(e.what(), "audio source 'null' is already registered");

@@ -23,11 +23,13 @@
 #include <utility>
 #include <vector>
 
+#include "locus/audio_source.hpp"
 #include "locus/detector.hpp"
 #include "locus/events.hpp"
 #include "locus/fft.hpp"
 #include "locus/host.hpp"
 #include "locus/link.hpp"
+#include "locus/localizer.hpp"
 
 namespace locus::test {
 
@@ -230,5 +232,30 @@ inline std::vector<std::vector<float>> deinterleave(const std::vector<float>& in
     for (std::uint32_t c = 0; c < channels; ++c) out[c][i] = interleaved[i * channels + c];
   return out;
 }
+
+/// Components that do nothing, for registry and config tests that only need something registered.
+class NullDetector : public Detector {
+ public:
+  void configure(const StreamInfo&, const Params&, HostContext&) override {}
+};
+
+class NullLocalizer : public Localizer {
+ public:
+  void configure(const Params&, HostContext&) override {}
+  std::vector<EventType> subscriptions() const override { return {EventType::AudioDetection}; }
+  void on_event(const Event&, Publisher&) override {}
+};
+
+/// A one-channel, 44.1 kHz source that has already finished.
+class NullSource : public AudioSource {
+ public:
+  void open(const Params&, HostContext&) override {}
+  std::uint32_t channels() const override { return 1; }
+  double sample_rate_hz() const override { return 44100.0; }
+  bool live() const override { return false; }
+  void start(AudioRing&) override {}
+  void stop() override {}
+  bool finished() const noexcept override { return true; }
+};
 
 }  // namespace locus::test
