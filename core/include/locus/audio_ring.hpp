@@ -232,10 +232,12 @@ class AudioRing {
   /// [any] Frames readable now (approximate while the producer runs).
   std::size_t readable_frames() const noexcept {
     // Read index first: it never passes the write index, which only grows, so the difference cannot
-    // wrap around (loading `write` first could see a `read` that has moved past it since).
+    // wrap around (loading `write` first could see a `read` that has moved past it since). Between
+    // the two loads both sides may move on, so an observer on a third thread can see more than a full
+    // ring: clamp to what the ring can actually hold. Exact when called by the consumer.
     const std::uint64_t r = cons_.read.load(std::memory_order_acquire);
     const std::uint64_t w = prod_.write.load(std::memory_order_acquire);
-    return static_cast<std::size_t>(w - r);
+    return static_cast<std::size_t>(std::min<std::uint64_t>(w - r, capacity_));
   }
   /// [any] Total frames the producer reported lost.
   std::uint64_t frames_lost() const noexcept { return frames_lost_.load(std::memory_order_relaxed); }

@@ -7,6 +7,7 @@
 // shared cache line is read only when the cached value says the queue looks full/empty.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <bit>
 #include <cstddef>
@@ -63,10 +64,12 @@ class SpscQueue {
   /// [any] Approximate number of queued values (exact when both sides are idle).
   std::size_t size_approx() const noexcept {
     // Read index first: it never passes the write index, which only grows, so the difference cannot
-    // wrap around (loading `write` first could see a `read` that has moved past it since).
+    // wrap around (loading `write` first could see a `read` that has moved past it since). Between
+    // the two loads both sides may move on, so an observer on a third thread can see more than a full
+    // ring: clamp to what the ring can actually hold. Exact when called by the consumer.
     const std::uint64_t r = cons_.read.load(std::memory_order_acquire);
     const std::uint64_t w = prod_.write.load(std::memory_order_acquire);
-    return static_cast<std::size_t>(w - r);
+    return static_cast<std::size_t>(std::min<std::uint64_t>(w - r, capacity_));
   }
 
   std::size_t capacity() const noexcept { return capacity_; }
