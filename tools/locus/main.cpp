@@ -4,6 +4,8 @@
 
 #include "app.hpp"
 #include "locus/plugin.hpp"
+#include "subcommand.hpp"
+// Tool modules (tools/<name>/cli.hpp): one include and one line in `modules` below each.
 
 int main(int argc, char** argv) {
   CLI::App cli{"locus: localization from sound, motion and radio"};
@@ -25,6 +27,9 @@ int main(int argc, char** argv) {
 
   auto* version = cli.add_subcommand("version", "print the version and plugin ABI");
 
+  std::vector<locus::app::Subcommand> modules = {
+  };
+
   try {
     cli.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -34,6 +39,9 @@ int main(int argc, char** argv) {
   if (*run) return locus::app::run_node(run_opts);
   if (*check) return locus::app::check_config(config_path);
   if (*plugins) return locus::app::list_plugins(plugin_dirs, json);
+  for (const auto& m : modules) {
+    if (*m.cmd) return m.run();
+  }
   if (*version) {
     std::cout << "locus " << LOCUS_VERSION << " (plugin ABI " << LOCUS_PLUGIN_ABI_VERSION << ")\n";
     return 0;

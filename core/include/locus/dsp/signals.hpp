@@ -1,0 +1,94 @@
+// The acoustic and radio signals of the scene format (docs: ../shared/docs/scene-format.md, "Signals"),
+// and their generators, bit for bit as the format defines them.
+//
+// One SignalSpec describes one `emits` entry of a scene. The same generator feeds the simulator
+// (which evaluates the continuous-time form at fractional, time-varying delays), the emitter
+// (playback) and the detectors' matched-filter templates, so a template always matches what was sent.
+//
+//   lfm        a·w(t)·sin(2π(f0·t + (f1−f0)·t²/(2·duration)))          w: raised-cosine fade in and out
+//   multitone  a·w(t)·(1/K)·Σ_k sin(2π·f_k·t)                          K tones, equal amplitudes a/K
+//   gold       a·c[floor(n / chip_samples)]·cos(2π·carrier·n/fs)        c = ±1 (chip bit 0 → +1, 1 → −1)
+//
+// Gold codes: the preferred pairs of the format (octal characteristic polynomials), two Fibonacci
+// LFSRs seeded all-ones give the m-sequences u and v; index 0 = u, 1 = v, k ≥ 2 = u XOR (v shifted
+// cyclically left by k−2). The LFSR recurrence for a characteristic polynomial
+// x^r + c_{r−1}x^{r−1} + … + c_1·x + 1 is a[n+r] = Σ_{i<r} c_i·a[n+i] (mod 2), a[0..r−1] = 1, and the
+// sequence is a[0], a[1], …  (docs/signals.md shows the first chips of each pair).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace locus::dsp {
+
+/// One `emits` entry. Fields that do not belong to `type` are left at their defaults.
+struct SignalSpec {
+  std::string type;               ///< "lfm", "gold", "multitone", "ble", or a project-specific type
+  double amplitude = 1.0;         ///< 0..1 (lfm, multitone, gold)
+  // lfm / multitone
+  double f0_hz = 0.0;             ///< lfm start frequency
+  double f1_hz = 0.0;             ///< lfm end frequency
+  double duration_s = 0.0;        ///< lfm, multitone
+  double fade_s = 0.0;            ///< raised-cosine fade in and out (lfm, multitone); 0 = none
+  std::vector<double> tones_hz;   ///< multitone
+  // gold
+  int degree = 0;                 ///< r: code length 2^r − 1
+  int index = 0;                  ///< which code of the family
+  double carrier_hz = 0.0;
+  int chip_samples = 0;           ///< samples per chip at the scene's sample rate
+  std::string chips;              ///< optional '0'/'1' string; authoritative when not empty
+  // ble
+  std::string address;            ///< "AA:BB:CC:DD:EE:FF"
+  double tx_power_dbm = 0.0;      ///< RSSI at 1 m
+  double interval_s = 0.0;        ///< advertising interval
+  // any acoustic entry
+  std::optional<double> sync_delay_s;  ///< delay from the emitter's radio sync message to the sound
+
+  bool acoustic() const noexcept { return type == "lfm" || type == "gold" || type == "multitone"; }
+};
+
+/// Raised-cosine fade weight at time t of a signal of `duration_s` with fades of `fade_s` (0..1).
+double fade_weight(double t_s, double duration_s, double fade_s) noexcept;
+
+/// m-sequence of degree r from an octal characteristic polynomial (e.g. 045 for x^5+x^2+1), LFSR
+/// seeded all-ones; bits 0/1, length 2^r − 1. Throws std::invalid_argument for a polynomial whose
+/// degree is not r.
+std::vector<std::uint8_t> m_sequence(int degree, unsigned poly_octal_value);
+
+/// The format's preferred pair for degree r (octal values as written in the format, e.g. {045, 075}).
+/// Throws std::invalid_argument for a degree the format does not list (5,6,7,9,10,11).
+std::pair<unsigned, unsigned> gold_preferred_pair(int degree);
+
+/// Gold code chips (bits 0/1) of a spec: `chips` when given, else generated from degree and index.
+/// Throws std::invalid_argument with what is wrong (bad degree, index out of 0..2^r, bad chip string).
+std::vector<std::uint8_t> gold_chips(const SignalSpec& spec);
+
+/// Length in samples of the emitted signal at `sample_rate_hz` (lfm/multitone: round(duration·fs);
+/// gold: chips·chip_samples). 0 for non-acoustic types.
+std::size_t signal_length(const SignalSpec& spec, double sample_rate_hz);
+
+/// Samples n = 0..signal_length−1 of the signal at n/fs. Throws std::invalid_argument for a
+/// non-acoustic or unknown type, or a malformed spec.
+std::vector<float> render_signal(const SignalSpec& spec, double sample_rate_hz);
+
+/// Continuous-time evaluator: the value of the emitted sound `t_s` seconds after its start (0 outside
+/// [0, duration)). lfm and multitone are exact closed forms; gold holds each chip for
+/// chip_samples/fs seconds and evaluates the carrier at t. Construct once (it precomputes the chips),
+/// then call value() at any t.
+class SignalEvaluator {
+ public:
+  SignalEvaluator(const SignalSpec& spec, double sample_rate_hz);
+  double value(double t_s) const noexcept;
+  double duration_s() const noexcept { return duration_s_; }
+  const SignalSpec& spec() const noexcept { return spec_; }
+
+ private:
+  SignalSpec spec_;
+  double fs_;
+  double duration_s_ = 0.0;
+  std::vector<float> chip_sign_;  // gold: ±1 per chip
+};
+
+}  // namespace locus::dsp

@@ -1,0 +1,135 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <numeric>
+
+#include "locus/dsp/signals.hpp"
+
+using namespace locus::dsp;
+
+namespace {
+SignalSpec lfm(double f0, double f1, double d, double fade) {
+  SignalSpec s;
+  s.type = "lfm";
+  s.f0_hz = f0;
+  s.f1_hz = f1;
+  s.duration_s = d;
+  s.fade_s = fade;
+  return s;
+}
+}  // namespace
+
+TEST(Signals, MSequenceIsMaximalLengthAndBalanced) {
+  for (int r : {5, 6, 7, 9, 10, 11}) {
+    const auto [pu, pv] = gold_preferred_pair(r);
+    for (unsigned p : {pu, pv}) {
+      const auto seq = m_sequence(r, p);
+      ASSERT_EQ(seq.size(), (1u << r) - 1);
+      EXPECT_EQ(std::accumulate(seq.begin(), seq.end(), 0u), 1u << (r - 1)) << "degree " << r;
+      // the first r chips are the all-ones seed
+      for (int i = 0; i < r; ++i) EXPECT_EQ(seq[i], 1);
+      // two-valued periodic autocorrelation: L at 0, -1 elsewhere
+      const int n = static_cast<int>(seq.size());
+      for (int shift : {1, 2, n / 3, n - 1}) {
+        int acc = 0;
+        for (int i = 0; i < n; ++i) acc += (seq[i] ? -1 : 1) * (seq[(i + shift) % n] ? -1 : 1);
+        EXPECT_EQ(acc, -1) << "degree " << r << " shift " << shift;
+      }
+    }
+  }
+}
+
+TEST(Signals, GoldIndexConvention) {
+  SignalSpec s;
+  s.type = "gold";
+  s.degree = 5;
+  const auto [pu, pv] = gold_preferred_pair(5);
+  const auto u = m_sequence(5, pu), v = m_sequence(5, pv);
+  s.index = 0;
+  EXPECT_EQ(gold_chips(s), u);
+  s.index = 1;
+  EXPECT_EQ(gold_chips(s), v);
+  s.index = 4;  // u XOR v shifted left by 2
+  const auto g = gold_chips(s);
+  for (std::size_t n = 0; n < u.size(); ++n) EXPECT_EQ(g[n], u[n] ^ v[(n + 2) % v.size()]);
+  s.index = 32;  // 2^5 = L + 1: the last valid index
+  EXPECT_NO_THROW(gold_chips(s));
+  s.index = 33;
+  EXPECT_THROW(gold_chips(s), std::invalid_argument);
+  s.index = 0;
+  s.degree = 8;
+  EXPECT_THROW(gold_chips(s), std::invalid_argument);
+  s.chips = "0110";
+  EXPECT_EQ(gold_chips(s), (std::vector<std::uint8_t>{0, 1, 1, 0}));  // authoritative, degree ignored
+  s.chips = "01x0";
+  EXPECT_THROW(gold_chips(s), std::invalid_argument);
+}
+
+TEST(Signals, GoldSamplesFollowTheFormula) {
+  SignalSpec s;
+  s.type = "gold";
+  s.degree = 5;
+  s.index = 3;
+  s.carrier_hz = 19000;
+  s.chip_samples = 7;
+  s.amplitude = 0.5;
+  const double fs = 44100;
+  const auto x = render_signal(s, fs);
+  const auto chips = gold_chips(s);
+  ASSERT_EQ(x.size(), 31u * 7u);
+  const SignalEvaluator eval(s, fs);
+  for (std::size_t n = 0; n < x.size(); ++n) {
+    const double expect = 0.5 * (chips[n / 7] ? -1.0 : 1.0) * std::cos(2 * std::numbers::pi * 19000 * n / fs);
+    ASSERT_NEAR(x[n], expect, 1e-6);
+    ASSERT_NEAR(eval.value(n / fs), expect, 1e-9);
+  }
+}
+
+TEST(Signals, LfmClosedFormAndFade) {
+  const SignalSpec s = lfm(2000, 8000, 0.04, 0.005);
+  const double fs = 44100;
+  const auto x = render_signal(s, fs);
+  ASSERT_EQ(x.size(), 1764u);
+  EXPECT_EQ(x[0], 0.0f);  // faded in from zero
+  const SignalEvaluator eval(s, fs);
+  EXPECT_DOUBLE_EQ(eval.value(-1e-9), 0.0);
+  EXPECT_DOUBLE_EQ(eval.value(0.04), 0.0);
+  // mid-chirp: unit amplitude, instantaneous frequency f0 + k t
+  const double t = 0.02, k = 6000 / 0.04;
+  EXPECT_NEAR(eval.value(t), std::sin(2 * std::numbers::pi * (2000 * t + 0.5 * k * t * t)), 1e-12);
+  EXPECT_DOUBLE_EQ(fade_weight(0.0025, 0.04, 0.005), 0.5);
+  EXPECT_NEAR(fade_weight(0.0375, 0.04, 0.005), 0.5, 1e-12);
+  EXPECT_DOUBLE_EQ(fade_weight(0.02, 0.04, 0.005), 1.0);
+  EXPECT_DOUBLE_EQ(fade_weight(0.02, 0.04, 0.0), 1.0);
+}
+
+TEST(Signals, MultitoneIsNormalisedByToneCount) {
+  SignalSpec s;
+  s.type = "multitone";
+  s.tones_hz = {18000, 18250, 18500, 18750};
+  s.duration_s = 0.05;
+  s.amplitude = 0.8;
+  const auto x = render_signal(s, 44100);
+  float peak = 0;
+  for (float v : x) peak = std::max(peak, std::abs(v));
+  EXPECT_LE(peak, 0.8f + 1e-6f);
+  EXPECT_GT(peak, 0.5f);
+}
+
+TEST(Signals, BadSpecsAreRefusedWithTheReason) {
+  SignalSpec s = lfm(2000, 8000, 0.0, 0.0);
+  try {
+    render_signal(s, 44100);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("lfm: duration must be > 0 s"), std::string::npos) << e.what();
+  }
+  s.type = "ble";
+  EXPECT_THROW(render_signal(s, 44100), std::invalid_argument);
+  EXPECT_EQ(signal_length(s, 44100), 0u);
+  SignalSpec m;
+  m.type = "multitone";
+  m.duration_s = 0.1;
+  EXPECT_THROW(render_signal(m, 44100), std::invalid_argument);
+}
