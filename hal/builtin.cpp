@@ -2,6 +2,7 @@
 
 #include <memory>
 
+#include "scene/scene_sources.hpp"
 #include "synth/synth_source.hpp"
 
 namespace locus::hal {
@@ -13,6 +14,7 @@ void register_builtin_sources(Registry& registry) {
       synth::synth_schema(),
       [] { return std::unique_ptr<AudioSource>(std::make_unique<synth::SynthSource>()); },
   });
+  scene_replay::register_scene_sources(registry);  // scene_audio, scene_imu, scene_ble, scene_sync
 }
 
 }  // namespace locus::hal

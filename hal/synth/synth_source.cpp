@@ -14,20 +14,6 @@ namespace {
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr double kSilentDbfs = -200.0;
 
-ParamSpec spec(std::string key, ParamType type, ParamValue def, std::optional<double> min, std::optional<double> max,
-               std::string unit, std::string doc, std::vector<std::string> choices = {}) {
-  ParamSpec s;
-  s.key = std::move(key);
-  s.type = type;
-  s.default_value = std::move(def);
-  s.min = min;
-  s.max = max;
-  s.unit = std::move(unit);
-  s.doc = std::move(doc);
-  s.choices = std::move(choices);
-  return s;
-}
-
 [[noreturn]] void fail(const std::string& message) { throw std::runtime_error("synth: " + message); }
 
 std::string num(double v) {
@@ -50,35 +36,33 @@ constexpr std::uint64_t mix64(std::uint64_t z) noexcept {  // splitmix64 finalis
 const ParamSchema& synth_schema() {
   static const ParamSchema schema = [] {
     ParamSchema s;
-    s.push_back(spec("channels", ParamType::Int, std::int64_t{1}, 1, 32, "", "Number of channels (microphones)."));
-    s.push_back(spec("duration_s", ParamType::Float, 10.0, 1e-6, 1e7, "s",
+    s.push_back(int_param("channels", std::int64_t{1}, 1, 32, "", "Number of channels (microphones)."));
+    s.push_back(float_param("duration_s", 10.0, 1e-6, 1e7, "s",
                      "Length of the stream on the device clock (> 0); the stream has round(duration_s*fs) frames."));
-    s.push_back(spec("period_s", ParamType::Float, 1.0, 0.0, 1e6, "s",
+    s.push_back(float_param("period_s", 1.0, 0.0, 1e6, "s",
                      "Emission period (true time); 0 emits once."));
-    s.push_back(spec("first_emission_s", ParamType::Float, 0.5, 0.0, 1e7, "s", "True time of the first emission."));
-    s.push_back(spec("signal", ParamType::Enum, std::string("lfm"), std::nullopt, std::nullopt, "",
-                     "Emitted signal: lfm (linear chirp f0 -> f1) or tone (f0).", {"lfm", "tone"}));
-    s.push_back(spec("f0_hz", ParamType::Float, 2000.0, 0.0, 1e6, "Hz", "Start frequency (tone: the frequency)."));
-    s.push_back(spec("f1_hz", ParamType::Float, 8000.0, 0.0, 1e6, "Hz", "End frequency of the lfm chirp."));
-    s.push_back(spec("signal_duration_s", ParamType::Float, 0.040, 1e-6, 1e4, "s", "Length of one emission (> 0)."));
-    s.push_back(spec("fade_s", ParamType::Float, 0.005, 0.0, 1e4, "s",
+    s.push_back(float_param("first_emission_s", 0.5, 0.0, 1e7, "s", "True time of the first emission."));
+    s.push_back(enum_param("signal", std::string("lfm"), {"lfm", "tone"},
+                           "Emitted signal: lfm (linear chirp f0 -> f1) or tone (f0)."));
+    s.push_back(float_param("f0_hz", 2000.0, 0.0, 1e6, "Hz", "Start frequency (tone: the frequency)."));
+    s.push_back(float_param("f1_hz", 8000.0, 0.0, 1e6, "Hz", "End frequency of the lfm chirp."));
+    s.push_back(float_param("signal_duration_s", 0.040, 1e-6, 1e4, "s", "Length of one emission (> 0)."));
+    s.push_back(float_param("fade_s", 0.005, 0.0, 1e4, "s",
                      "Raised-cosine fade in and out (0 = sharp edges; at most half the signal duration)."));
-    s.push_back(spec("amplitude", ParamType::Float, 0.5, 0.0, 1.0, "", "Peak amplitude of the signal (full scale = 1)."));
-    ParamSpec delays = spec("channel_delays_s", ParamType::FloatList, std::vector<double>{}, 0.0, 1e4, "s",
-                            "Extra propagation delay per channel (fractional samples allowed); empty = 0 for every "
-                            "channel, else exactly one value per channel.");
-    delays.max_items = 32;
-    s.push_back(std::move(delays));
-    s.push_back(spec("noise_dbfs", ParamType::Float, -60.0, -400.0, 0.0, "dB",
+    s.push_back(float_param("amplitude", 0.5, 0.0, 1.0, "", "Peak amplitude of the signal (full scale = 1)."));
+    s.push_back(float_list_param("channel_delays_s", std::vector<double>{}, 0.0, 1e4, "s",
+                                 "Extra propagation delay per channel (fractional samples allowed); empty = 0 for "
+                                 "every channel, else exactly one value per channel.",
+                                 0, 32));
+    s.push_back(float_param("noise_dbfs", -60.0, -400.0, 0.0, "dB",
                      "White Gaussian noise RMS in dBFS (full scale 1.0); <= -200 is exactly silent."));
-    s.push_back(spec("seed", ParamType::Int, std::int64_t{1}, 0, 9.0e18, "", "Noise seed (same seed, same stream)."));
-    s.push_back(spec("clock_skew_ppm", ParamType::Float, 0.0, -10000.0, 10000.0, "ppm",
+    s.push_back(int_param("seed", std::int64_t{1}, 0, 9.0e18, "", "Noise seed (same seed, same stream)."));
+    s.push_back(float_param("clock_skew_ppm", 0.0, -10000.0, 10000.0, "ppm",
                      "Device clock error: sample k is taken at true time k / (fs * (1 + skew * 1e-6))."));
-    s.push_back(spec("sample_rate_hz", ParamType::Float, 44100.0, 1000.0, 768000.0, "Hz", "Nominal sample rate."));
-    s.push_back(spec("pace", ParamType::Enum, std::string("max"), std::nullopt, std::nullopt, "",
-                     "max: as fast as the consumer reads (never drops); realtime: paced by the steady clock like "
-                     "a sound card (a slow consumer loses frames, reported).",
-                     {"max", "realtime"}));
+    s.push_back(float_param("sample_rate_hz", 44100.0, 1000.0, 768000.0, "Hz", "Nominal sample rate."));
+    s.push_back(enum_param("pace", std::string("max"), {"max", "realtime"},
+                           "max: as fast as the consumer reads (never drops); realtime: paced by the steady clock "
+                           "like a sound card (a slow consumer loses frames, reported)."));
     return s;
   }();
   return schema;

@@ -13,18 +13,6 @@ namespace locus {
 
 namespace {
 
-ParamSpec fspec(std::string key, double def, double min, double max, std::string unit, std::string doc) {
-  ParamSpec s;
-  s.key = std::move(key);
-  s.type = ParamType::Float;
-  s.default_value = def;
-  s.min = min;
-  s.max = max;
-  s.unit = std::move(unit);
-  s.doc = std::move(doc);
-  return s;
-}
-
 class OnsetDetector final : public Detector {
  public:
   void configure(const StreamInfo& info, const Params& params, HostContext& ctx) override {
@@ -227,18 +215,18 @@ Detector* create() { return new OnsetDetector(); }
 
 const ParamSchema& onset_schema() {
   static const ParamSchema schema = {
-      fspec("threshold_db", 12.0, 1.0, 80.0, "dB", "Trigger when the short-term energy exceeds the noise floor by this."),
-      fspec("window_s", 0.002, 1e-5, 1.0, "s", "Time constant of the one-pole short-term energy."),
-      fspec("floor_time_constant_s", 1.0, 1e-3, 3600.0, "s",
+      float_param("threshold_db", 12.0, 1.0, 80.0, "dB", "Trigger when the short-term energy exceeds the noise floor by this."),
+      float_param("window_s", 0.002, 1e-5, 1.0, "s", "Time constant of the one-pole short-term energy."),
+      float_param("floor_time_constant_s", 1.0, 1e-3, 3600.0, "s",
             "Time constant of the noise-floor tracker (tracks only while no event is in progress)."),
-      fspec("hold_off_s", 0.1, 0.0, 3600.0, "s", "After an onset, no new detection on that channel for this long."),
-      fspec("onset_k", 4.0, 1.0, 1000.0, "",
+      float_param("hold_off_s", 0.1, 0.0, 3600.0, "s", "After an onset, no new detection on that channel for this long."),
+      float_param("onset_k", 4.0, 1.0, 1000.0, "",
             "Onset = first sample whose |x| exceeds onset_k noise RMS (linear interpolation between samples)."),
-      fspec("onset_gap_s", 0.0002, 1e-6, 1.0, "s",
+      float_param("onset_gap_s", 0.0002, 1e-6, 1.0, "s",
             "A run of samples this long below onset_k noise RMS ends the walk back to the onset."),
-      fspec("lookback_s", 0.05, 1e-4, 10.0, "s", "How far back from the trigger the onset may lie."),
-      fspec("warmup_s", 0.05, 0.0, 3600.0, "s", "Noise floor learnt for this long before the first trigger."),
-      fspec("min_floor_dbfs", -120.0, -400.0, 0.0, "dB",
+      float_param("lookback_s", 0.05, 1e-4, 10.0, "s", "How far back from the trigger the onset may lie."),
+      float_param("warmup_s", 0.05, 0.0, 3600.0, "s", "Noise floor learnt for this long before the first trigger."),
+      float_param("min_floor_dbfs", -120.0, -400.0, 0.0, "dB",
             "Lower bound of the noise floor (power, dBFS), so digital silence has a finite floor."),
   };
   return schema;

@@ -17,6 +17,7 @@
 #include "locus/event_bus.hpp"
 #include "locus/pipeline.hpp"
 #include "locus/registry.hpp"
+#include "locus/sensor_source.hpp"
 #include "support/test_host.hpp"
 
 extern "C" {
@@ -233,6 +234,129 @@ TEST(RtSafety, EveryDetectorProcessDoesNotAllocateOrLock) {
     ++checked;
   }
   EXPECT_GE(checked, 3) << "expected onset, clip_detector and fixture_level at least";
+}
+
+// The sensor delivery path: DeviceRunner merging audio blocks with IMU / BLE / sync queues by local
+// time, handing IMU and BLE events to every registered detector that consumes them and posting the raw
+// events to the bus queue.
+namespace {
+class RtAudioSource final : public AudioSource {
+ public:
+  void open(const Params&, HostContext&) override {}
+  std::uint32_t channels() const override { return 1; }
+  double sample_rate_hz() const override { return 44100.0; }
+  bool live() const override { return false; }
+  void start(AudioRing&) override {}
+  void stop() override {}
+  bool finished() const noexcept override { return false; }
+};
+class RtSensorSource final : public SensorSource {
+ public:
+  RtSensorSource(SensorKind kind, bool live) : kind_(kind), live_(live) {}
+  void open(const Params&, HostContext&) override {}
+  SensorKind kind() const override { return kind_; }
+  bool live() const override { return live_; }
+  void start(SensorQueue&) override {}
+  void stop() override {}
+  bool finished() const noexcept override { return false; }
+
+ private:
+  SensorKind kind_;
+  bool live_;
+};
+}  // namespace
+
+TEST(RtSafety, SensorDeliveryDoesNotAllocateOrLock) {
+  Registry registry;
+  register_builtins(registry);
+  test::TestHost host;
+  constexpr std::uint32_t kBlock = 256;
+  constexpr double kFs = 44100.0;
+  StreamInfo info;
+  info.device = "A";
+  info.channels = 1;
+  info.sample_rate_hz = kFs;
+  info.max_block_frames = kBlock;
+  std::vector<std::unique_ptr<Detector>> detectors;
+  std::vector<Detector*> audio_dets, imu_dets, ble_dets;
+  std::vector<std::string> names;
+  for (const auto& entry : registry.plugins()) {
+    const locus_plugin_descriptor* d = entry.descriptor;
+    if (d->kind != LOCUS_PLUGIN_DETECTOR || !(d->inputs & (kInputImu | kInputBle))) continue;
+    bool has_required = false;
+    for (const ParamSpec& p : *d->schema()) has_required |= p.required();
+    ASSERT_FALSE(has_required) << d->name << ": give it test parameters here";
+    auto det = registry.create_detector(d->name);
+    HostContext ctx = host.context(d->name, "A");
+    det->configure(info, Params::defaults(*d->schema()), ctx);
+    if (d->inputs & kInputAudio) audio_dets.push_back(det.get());
+    if (d->inputs & kInputImu) imu_dets.push_back(det.get());
+    if (d->inputs & kInputBle) ble_dets.push_back(det.get());
+    names.emplace_back(d->name);
+    detectors.push_back(std::move(det));
+  }
+  AudioRing ring(1, 1 << 16);
+  RtEventQueue queue("A", 1 << 12);
+  AudioBlockRunner block_runner(ring, kBlock, audio_dets, queue);
+  RtAudioSource audio_source;
+  RtSensorSource imu_source(SensorKind::Imu, false), ble_source(SensorKind::Ble, true),
+      sync_source(SensorKind::Sync, true);
+  SensorQueue imu_q(1024), ble_q(256), sync_q(64);
+  DeviceRunner runner(kFs, queue, &queue);
+  runner.set_audio(block_runner, ring, audio_source, kBlock);
+  runner.add_sensor(imu_q, imu_source, imu_dets);
+  runner.add_sensor(ble_q, ble_source, ble_dets);
+  runner.add_sensor(sync_q, sync_source, {});
+
+  std::vector<float> block(kBlock);
+  std::uint64_t frame = 0;
+  int n = 0;
+  Event out;
+  auto iterate = [&] {
+    for (std::uint32_t i = 0; i < kBlock; ++i, ++frame) {
+      block[i] = 0.3f * std::sin(2.0f * 3.14159265f * 1000.0f * static_cast<float>(frame) / 44100.0f);
+    }
+    ring.write(block.data(), kBlock);
+    const double t = static_cast<double>(frame - kBlock + 100) / kFs;
+    ImuSample imu;
+    imu.device = "A";
+    imu.t_s = t;
+    imu.accel_mps2 = {0.0f, static_cast<float>(9.81 + std::sin(6.0 * t)), 0.5f * static_cast<float>(std::cos(11.0 * t))};
+    imu.gyro_radps = {0.01f, 0.02f, static_cast<float>(0.3 * std::sin(2.0 * t))};
+    imu_q.try_push(imu);
+    if (n % 4 == 0) {
+      BleAdvertisement a;
+      a.device = "A";
+      a.t_s = t + 0.001;
+      a.address = {0xC4, 0x2C, 0x03, 0x3A, 0x2C, 0xA1};
+      a.rssi_dbm = static_cast<float>(-60 - n % 9);
+      ble_q.try_push(a);
+    }
+    if (n % 16 == 0) {
+      RadioSync r;
+      r.device = "A";
+      r.t_s = t + 0.002;
+      r.source = "B1";
+      sync_q.try_push(r);
+    }
+    ++n;
+    while (runner.step(false)) {
+    }
+    while (queue.pop(out)) {
+    }
+  };
+  for (int i = 0; i < 200; ++i) iterate();  // warm-up
+  const std::uint64_t delivered0 = runner.sensor_events_delivered();
+  RtSection rt;
+  for (int i = 0; i < 4000; ++i) iterate();
+  const long allocs = rt.allocs(), frees = rt.frees(), locks = rt.locks();
+  std::string who;
+  for (const auto& name : names) who += name + " ";
+  EXPECT_EQ(allocs, 0) << "sensor delivery allocated (detectors: " << who << ")";
+  EXPECT_EQ(frees, 0) << "sensor delivery freed (detectors: " << who << ")";
+  EXPECT_EQ(locks, 0) << "sensor delivery locked a mutex (detectors: " << who << ")";
+  EXPECT_GE(runner.sensor_events_delivered() - delivered0, 4000u + 1000u + 250u - 2u);
+  EXPECT_GE(block_runner.frames_processed(), 4000u * kBlock);
 }
 
 }  // namespace

@@ -21,41 +21,25 @@ namespace fs = std::filesystem;
 
 // ------------------------------------------------------------------------------ fakes
 
-/// A ParamSpec without designated initializers (which warn about every member left out).
-ParamSpec spec(std::string key, ParamType type, ParamValue def, std::optional<double> min = std::nullopt,
-               std::optional<double> max = std::nullopt, std::string unit = {}) {
-  ParamSpec s;
-  s.key = std::move(key);
-  s.type = type;
-  s.default_value = std::move(def);
-  s.min = min;
-  s.max = max;
-  s.unit = std::move(unit);
-  return s;
-}
-
 const ParamSchema* onset_schema() {
   static const ParamSchema schema = [] {
     ParamSchema s;
-    s.push_back(spec("threshold_db", ParamType::Float, -20.0, -60.0, 0.0, "dB"));
-    s.push_back(spec("window_s", ParamType::Float, 0.05, 0.0, 1.0, "s"));
-    s.push_back(spec("mode", ParamType::Enum, std::string("fast")));
-    s.back().choices = {"fast", "slow"};
-    s.push_back(spec("enabled", ParamType::Bool, true));
-    s.push_back(spec("order", ParamType::Int, std::int64_t{2}, 1.0, 8.0));
-    s.push_back(spec("gains", ParamType::FloatList, std::vector<double>{1.0}, 0.0, 10.0));
-    s.back().min_items = 1;
-    s.back().max_items = 4;
+    s.push_back(float_param("threshold_db", -20.0, -60.0, 0.0, "dB", ""));
+    s.push_back(float_param("window_s", 0.05, 0.0, 1.0, "s", ""));
+    s.push_back(enum_param("mode", std::string("fast"), {"fast", "slow"}, ""));
+    s.push_back(bool_param("enabled", true, ""));
+    s.push_back(int_param("order", std::int64_t{2}, 1.0, 8.0, "", ""));
+    s.push_back(float_list_param("gains", std::vector<double>{1.0}, 0.0, 10.0, "", "", 1, 4));
     return s;
   }();
   return &schema;
 }
 const ParamSchema* xcorr_schema() {
-  static const ParamSchema schema = {spec("template_hz", ParamType::Float, {}, 1.0, 20000.0, "Hz")};  // required
+  static const ParamSchema schema = {float_param("template_hz", {}, 1.0, 20000.0, "Hz", "")};  // required
   return &schema;
 }
 const ParamSchema* tri_schema() {
-  static const ParamSchema schema = {spec("max_range_m", ParamType::Float, 10.0, 0.0, 100.0, "m")};
+  static const ParamSchema schema = {float_param("max_range_m", 10.0, 0.0, 100.0, "m", "")};
   return &schema;
 }
 Detector* make_detector() { return new test::NullDetector; }
@@ -76,8 +60,8 @@ class ConfigTest : public ::testing::Test {
     registry.add_plugin(&kTri);
     registry.add_source(SourceDescriptor{
         "synth", "test tones",
-        {spec("frequency_hz", ParamType::Float, 1000.0, 1.0, 20000.0, "Hz"),
-         spec("channels", ParamType::Int, std::int64_t{1}, 1.0, 8.0)},
+        {float_param("frequency_hz", 1000.0, 1.0, 20000.0, "Hz", ""),
+         int_param("channels", std::int64_t{1}, 1.0, 8.0, "", "")},
         [] { return std::make_unique<test::NullSource>(); }});
   }
 

@@ -54,10 +54,33 @@ struct AudioConfig {
   std::uint32_t block_frames = 256;    ///< frames per detector block
 };
 
+/// A sensor stream of a device (`imu:`, `ble:` or `sync:` section).
+struct SensorConfig {
+  std::string source;                    ///< registry name of a sensor source of the section's kind
+  Params params;                         ///< validated against the source's schema
+  std::uint32_t queue_capacity = 4096;   ///< events the hand-over queue holds (rounded up to a power of two)
+};
+
+/// Id of the template device entry (`id: "*"`): used by `locus replay` for every scene device without
+/// an entry of its own; a node run (`locusd`, `locus run`) does not instantiate it.
+inline constexpr std::string_view kTemplateDeviceId = "*";
+
 struct DeviceConfig {
-  std::string id;  ///< [A-Za-z0-9_-]+, unique
+  std::string id;  ///< [A-Za-z0-9_-]+, unique; or "*" (kTemplateDeviceId)
   std::optional<AudioConfig> audio;
+  std::optional<SensorConfig> imu;
+  std::optional<SensorConfig> ble;
+  std::optional<SensorConfig> sync;
   std::vector<ComponentConfig> detectors;
+
+  bool is_template() const noexcept { return id == kTemplateDeviceId; }
+  /// The section of `kind` (imu, ble, sync).
+  std::optional<SensorConfig>& sensor(SensorKind kind) {
+    return kind == SensorKind::Imu ? imu : kind == SensorKind::Ble ? ble : sync;
+  }
+  const std::optional<SensorConfig>& sensor(SensorKind kind) const {
+    return kind == SensorKind::Imu ? imu : kind == SensorKind::Ble ? ble : sync;
+  }
 };
 
 struct OutputConfig {

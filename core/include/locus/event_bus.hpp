@@ -42,6 +42,8 @@ class RtEventQueue final : public EventSink {
   /// [any] Events refused because the queue was full.
   std::uint64_t dropped() const noexcept { return dropped_.load(std::memory_order_relaxed); }
   std::size_t capacity() const noexcept { return queue_.capacity(); }
+  /// [any] Approximate number of queued events (seen from the producer: an upper bound, the consumer only removes).
+  std::size_t size_approx() const noexcept { return queue_.size_approx(); }
 
  private:
   std::string name_;

@@ -98,8 +98,26 @@ struct Estimate {
   float confidence = 0.0f;             ///< 0..1
 };
 
-/// Every event type, in a fixed order (the order is part of the plugin ABI).
-using Event = std::variant<AudioDetection, ImuSample, BleAdvertisement, RadioSync, Step, Attitude, Estimate>;
+/// Reverberation-decay features of one detected sound (SpyLoc's LoS/NLoS features T5..T30), emitted
+/// by a detector right after the AudioDetection it belongs to (same device, detector, stream, channel,
+/// template_index and frame). Kept separate so AudioDetection stays small.
+struct DecayFeatures {
+  DeviceId device;
+  NameTag detector;
+  std::uint32_t stream = 0;
+  std::uint16_t channel = 0;
+  std::uint16_t template_index = 0;
+  double frame = 0.0;                ///< the detection's frame (links the two events)
+  double sample_rate_hz = 0.0;
+  /// T5, T10, ..., T30: seconds from the end of the direct sound until the smoothed energy envelope
+  /// first falls 5, 10, ..., 30 dB below the direct sound's peak; NaN = not reached in the window.
+  std::array<float, 6> decay_s{NAN, NAN, NAN, NAN, NAN, NAN};
+  float noise_margin_db = 0.0f;      ///< direct-sound peak energy over the noise floor
+};
+
+/// Every event type, in a fixed order (the order is part of the plugin ABI; new types go at the end).
+using Event = std::variant<AudioDetection, ImuSample, BleAdvertisement, RadioSync, Step, Attitude, Estimate,
+                           DecayFeatures>;
 static_assert(std::is_trivially_copyable_v<Event>);
 
 enum class EventType : std::uint8_t {
@@ -110,6 +128,7 @@ enum class EventType : std::uint8_t {
   Step,
   Attitude,
   Estimate,
+  DecayFeatures,
 };
 inline constexpr std::size_t kEventTypeCount = std::variant_size_v<Event>;
 

@@ -3,6 +3,7 @@
 // own threads for these and never reach for globals.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -41,6 +42,26 @@ class Publisher {
   virtual void publish(const Event& event) = 0;
 };
 
+/// Where the parts of the device a plugin instance serves are (plain data, part of the plugin ABI).
+///
+/// The host fills it when it knows the device: `locus replay` from the scene's scene.yaml (mics,
+/// speaker, emits, anchor of that device, docs/scene-format.md); a node run from a config alone has no
+/// geometry yet (HostContext::geometry == nullptr). Positions are metres; mics and speaker in the
+/// device body frame (Android convention), the anchor in the world frame. The object and the
+/// emits_json text stay valid and unchanged for the plugin instance's lifetime.
+struct DeviceGeometry {
+  static constexpr std::uint32_t kMaxMics = 32;
+  std::uint32_t mic_count = 0;                           ///< valid rows of mics_m = audio channels
+  std::array<std::array<double, 3>, kMaxMics> mics_m{};  ///< one per audio channel, channel order
+  bool has_speaker = false;                              ///< false: the device cannot emit
+  std::array<double, 3> speaker_m{};
+  bool has_anchor = false;                               ///< true: the device's position is known
+  std::array<double, 3> anchor_m{};                      ///< world frame
+  /// The device's `emits` list as a JSON array with the field names of scene-format.md ("[]" when it
+  /// emits nothing), e.g. [{"type":"lfm","f0":2000,"f1":8000,"duration":0.04,"fade":0.005}].
+  const char* emits_json = "[]";
+};
+
 /// Everything a plugin instance gets from its host at configure() time. References stay valid until
 /// the instance is destroyed.
 struct HostContext {
@@ -50,6 +71,8 @@ struct HostContext {
   Link& link;                  ///< for localizers; handlers are delivered on the dispatcher thread
   std::string_view instance;   ///< this instance's name from the config
   std::string_view device;     ///< the device this instance serves ("" for node-wide localizers)
+  /// Geometry of `device` when the host knows it (replay), else nullptr. See DeviceGeometry.
+  const DeviceGeometry* geometry = nullptr;
 };
 
 }  // namespace locus

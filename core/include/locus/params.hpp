@@ -38,6 +38,58 @@ struct ParamSpec {
 
 using ParamSchema = std::vector<ParamSpec>;
 
+// Schema builders: one line per parameter in a plugin's schema, e.g.
+//   ParamSchema s{float_param("threshold_db", 12.0, 1.0, 80.0, "dB", "Trigger level above the floor."),
+//                 enum_param("mode", "spyloc", {"spyloc", "montage"}, "Step detector form.")};
+// A std::monostate default (see required()) makes the parameter required.
+inline ParamSpec float_param(std::string key, ParamValue def, double min, double max, std::string unit, std::string doc) {
+  ParamSpec s;
+  s.key = std::move(key);
+  s.type = ParamType::Float;
+  s.default_value = std::move(def);
+  s.min = min;
+  s.max = max;
+  s.unit = std::move(unit);
+  s.doc = std::move(doc);
+  return s;
+}
+inline ParamSpec int_param(std::string key, ParamValue def, double min, double max, std::string unit, std::string doc) {
+  ParamSpec s = float_param(std::move(key), std::move(def), min, max, std::move(unit), std::move(doc));
+  s.type = ParamType::Int;
+  return s;
+}
+inline ParamSpec bool_param(std::string key, bool def, std::string doc) {
+  ParamSpec s;
+  s.key = std::move(key);
+  s.type = ParamType::Bool;
+  s.default_value = def;
+  s.doc = std::move(doc);
+  return s;
+}
+inline ParamSpec string_param(std::string key, ParamValue def, std::string doc) {
+  ParamSpec s;
+  s.key = std::move(key);
+  s.type = ParamType::String;
+  s.default_value = std::move(def);
+  s.doc = std::move(doc);
+  return s;
+}
+inline ParamSpec enum_param(std::string key, ParamValue def, std::vector<std::string> choices, std::string doc) {
+  ParamSpec s = string_param(std::move(key), std::move(def), std::move(doc));
+  s.type = ParamType::Enum;
+  s.choices = std::move(choices);
+  return s;
+}
+inline ParamSpec float_list_param(std::string key, ParamValue def, double min, double max, std::string unit,
+                                  std::string doc, std::size_t min_items = 0,
+                                  std::optional<std::size_t> max_items = std::nullopt) {
+  ParamSpec s = float_param(std::move(key), std::move(def), min, max, std::move(unit), std::move(doc));
+  s.type = ParamType::FloatList;
+  if (min_items > 0) s.min_items = min_items;
+  s.max_items = max_items;
+  return s;
+}
+
 /// Human-readable name of a type ("float", "list of floats", ...), used in error messages.
 std::string_view param_type_name(ParamType t) noexcept;
 

@@ -1,18 +1,32 @@
 // The node pipeline built from a validated Config: per device an audio source (HAL) feeding an
-// AudioRing, a detector thread running that device's detectors block by block, and one event bus
-// whose dispatcher thread feeds the localizers and the JSON-lines sink.
+// AudioRing and optional sensor sources (imu, ble, sync) feeding SensorQueues, a detector thread that
+// merges the device's streams by local time and runs its detectors, and one event bus whose dispatcher
+// thread feeds the localizers and the JSON-lines sink.
 //
-//   source thread/callback --AudioRing--> detector thread --RtEventQueue--> dispatcher --> localizers
-//                                                                                      \-> JSON lines
+//   audio source  --AudioRing---+
+//   imu/ble/sync  --SensorQueue--+--> detector thread (DeviceRunner) --RtEventQueue--> dispatcher --> localizers
+//                                                                                              +--> JSON lines
 //
-// The block runner (AudioBlockRunner) is a plain object, testable on one thread; Pipeline only adds
-// the threads and the orderly shutdown (stop sources, drain rings through the detectors, finish
-// detectors, drain the bus, finish localizers, flush sinks).
+// Time order: the detector thread delivers every sensor event with local time t_s before the first
+// audio block that starts after t_s * fs (before block [F, F+n) come exactly the events with
+// t_s * fs < F), and merges the sensor streams among themselves by t_s. When every source of the
+// device is non-live (replay at max speed) the thread waits for whichever stream is behind, so the
+// interleaving is exact and nothing is dropped (it also waits for room in the event queue). A live
+// stream never makes it wait: live streams are merged as they come (best effort).
+//
+// Every raw sensor event (ImuSample, BleAdvertisement, RadioSync) is also posted to the bus, in that
+// order with the detections, so localizers can subscribe to them.
+//
+// The runners (AudioBlockRunner, DeviceRunner) are plain objects, testable on one thread; Pipeline only
+// adds the threads and the orderly shutdown (stop sources, drain rings and queues through the
+// detectors, finish detectors, drain the bus, finish localizers, flush sinks). `locus replay` runs
+// several pipelines over one shared link and drives the two shutdown phases itself.
 #pragma once
 
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <string>
 #include <thread>
@@ -24,6 +38,7 @@
 #include "locus/detector.hpp"
 #include "locus/event_bus.hpp"
 #include "locus/registry.hpp"
+#include "locus/sensor_source.hpp"
 
 namespace locus {
 
@@ -54,20 +69,101 @@ class AudioBlockRunner {
   std::uint64_t next_frame_ = 0;
 };
 
+/// Consumer side of one device: merges its audio (through an AudioBlockRunner) and its sensor queues
+/// by local time, hands sensor events to the detectors that consume them and posts them to the sink.
+/// Set up on the main thread; step() runs on the device's detector thread.
+class DeviceRunner {
+ public:
+  /// `sink` receives the raw sensor events (and is what detectors emit into); `backpressure`, when
+  /// given, is the queue behind `sink`: a device whose sources are all non-live waits while it is more
+  /// than half full instead of dropping.
+  DeviceRunner(double sample_rate_hz, EventSink& sink, const RtEventQueue* backpressure = nullptr);
+
+  /// [main] The device's audio (optional). The runner and ring outlive this object.
+  void set_audio(AudioBlockRunner& runner, AudioRing& ring, const AudioSource& source, std::uint32_t block_frames);
+  /// [main] One sensor stream and the detectors that consume it (process_imu for Imu, process_ble for
+  /// Ble; Sync events only go to the sink). Up to kMaxSensors streams.
+  void add_sensor(SensorQueue& queue, const SensorSource& source, std::vector<Detector*> detectors);
+  static constexpr std::size_t kMaxSensors = 8;
+
+  /// [RT] Delivers at most one item (one audio block or one sensor event), the earliest in local time.
+  /// Returns false when nothing can be delivered now (a non-live stream is behind, or all is drained).
+  /// `stop_requested`: the sources were stopped; deliver what is queued without waiting for more.
+  bool step(bool stop_requested) noexcept;
+  /// [RT] True once every stream has ended and everything queued was delivered.
+  bool done() const noexcept { return done_; }
+
+  std::uint64_t sensor_events_delivered() const noexcept { return sensor_events_; }
+  /// Times the runner found nothing it could deliver while a non-live stream was behind (waits).
+  std::uint64_t waits() const noexcept { return waits_; }
+
+ private:
+  struct Sensor {
+    SensorQueue* queue = nullptr;
+    const SensorSource* source = nullptr;
+    SensorKind kind = SensorKind::Imu;
+    bool live = false;
+    std::vector<Detector*> detectors;
+    Event head;
+    bool has_head = false;
+    bool ended = false;
+  };
+  void deliver(Sensor& s) noexcept;
+
+  double fs_;
+  EventSink& sink_;
+  const RtEventQueue* backpressure_;
+  AudioBlockRunner* audio_ = nullptr;
+  AudioRing* ring_ = nullptr;
+  const AudioSource* audio_source_ = nullptr;
+  std::uint32_t block_frames_ = 0;
+  bool audio_live_ = false;
+  bool audio_ended_ = true;
+  bool all_non_live_ = true;
+  std::vector<Sensor> sensors_;  // reserved kMaxSensors: never reallocates
+  bool done_ = false;
+  std::uint64_t sensor_events_ = 0;
+  std::uint64_t waits_ = 0;
+};
+
 struct DeviceStats {
   std::string id;
   std::uint64_t frames_processed = 0;
   std::uint64_t frames_lost = 0;
   std::uint64_t overruns = 0;
   std::uint64_t events_dropped = 0;
-  std::string source_error;
+  std::uint64_t sensor_events = 0;   ///< sensor events delivered (all streams)
+  std::uint64_t sensor_dropped = 0;  ///< sensor events live sources dropped (full queue)
+  std::string source_error;          ///< first error of the device's sources ("imu source: ..." for sensors)
+};
+
+/// The geometry a pipeline hands to the plugins of one device (DeviceGeometry::emits_json points into
+/// `emits_json`, fixed up by the pipeline).
+struct GeometrySpec {
+  DeviceGeometry geometry;
+  std::string emits_json = "[]";
+};
+
+/// How a pipeline is embedded (defaults: a stand-alone node, as locusd runs it).
+struct PipelineOptions {
+  /// Shared link (not owned; must outlive the pipeline and be flushed by the owner). nullptr: the
+  /// pipeline has its own InProcessLink.
+  Link* link = nullptr;
+  /// Write config.output through the pipeline's own JSON-lines writer. False when the embedder
+  /// subscribes its own sink (replay: one writer for every node).
+  bool write_output = true;
+  /// HostContext::device of the localizers ("" = node-wide). Replay: the node's device id.
+  std::string localizer_device;
+  /// Per device id; plugins of a device listed here get HostContext::geometry.
+  std::map<std::string, GeometrySpec> geometry;
 };
 
 class Pipeline {
  public:
   /// [main] Instantiates and configures every source, detector, localizer and sink of `config`.
-  /// Throws std::runtime_error naming the component that failed.
-  Pipeline(const Config& config, Registry& registry);
+  /// Template devices (id "*") are not instantiated. Throws std::runtime_error naming the component
+  /// that failed (including a detector whose inputs the device has no stream for).
+  Pipeline(const Config& config, Registry& registry, PipelineOptions options = {});
   ~Pipeline();
   Pipeline(const Pipeline&) = delete;
   Pipeline& operator=(const Pipeline&) = delete;
@@ -80,7 +176,21 @@ class Pipeline {
   /// [any] True when every finite source has ended and its frames went through the detectors.
   bool finished() const noexcept;
   /// [main] Orderly shutdown; idempotent. Everything accepted so far reaches the sinks.
+  /// Same as stop_inputs(); settle (own link only); finish_localizers(); settle; flush().
   void stop();
+
+  // The shutdown phases, for embedders that share a link between pipelines (replay):
+  /// [main] Phase (a): stops the sources, drains rings and queues through the detectors, finishes the
+  /// detectors and delivers everything on the bus; stops the dispatcher thread (from then on the
+  /// calling thread delivers, through deliver_pending()). Idempotent.
+  void stop_inputs();
+  /// [main, after stop_inputs()] Delivers what is queued on the bus now (link messages re-posted by the
+  /// link, events localizers published). Returns the number of items delivered.
+  std::size_t deliver_pending();
+  /// [main, after stop_inputs()] Calls every localizer's finish() once (later calls do nothing).
+  void finish_localizers();
+  /// [main] Logs the device statistics and flushes the pipeline's own writer (if any); once.
+  void flush();
 
   std::vector<DeviceStats> stats() const;
   std::uint64_t events_delivered(EventType type) const noexcept { return bus_.delivered(type); }
@@ -89,11 +199,14 @@ class Pipeline {
   struct Device;
   struct LocalizerInstance;
   void run_device(Device& device);
+  void settle();
 
   const Config config_;
   Registry& registry_;
+  PipelineOptions options_;
   EventBus bus_;
-  std::unique_ptr<Link> link_;
+  std::unique_ptr<Link> own_link_;  // when options_.link is nullptr
+  Link* link_ = nullptr;
   std::unique_ptr<Link> dispatched_link_;
   std::unique_ptr<FftPlanner> fft_;
   std::unique_ptr<Clock> clock_;
@@ -102,6 +215,9 @@ class Pipeline {
   std::unique_ptr<class JsonLinesWriter> writer_;
   std::unique_ptr<Publisher> publisher_;
   bool started_ = false;
+  bool inputs_stopped_ = false;
+  bool localizers_finished_ = false;
+  bool flushed_ = false;
   bool stopped_ = false;
 };
 

@@ -24,7 +24,7 @@
 #include "locus/params.hpp"
 
 /// Bump on any change of layout or virtual table in the public headers.
-#define LOCUS_PLUGIN_ABI_VERSION 1u
+#define LOCUS_PLUGIN_ABI_VERSION 2u  // 2: HostContext::geometry (DeviceGeometry)
 #define LOCUS_PLUGIN_ENUM_SYMBOL "locus_plugin_enum"
 
 extern "C" {

@@ -14,6 +14,7 @@
 
 #include "locus/audio_source.hpp"
 #include "locus/plugin.hpp"
+#include "locus/sensor_source.hpp"
 
 namespace locus {
 
@@ -23,6 +24,15 @@ struct SourceDescriptor {
   std::string description;
   ParamSchema schema;
   std::function<std::unique_ptr<AudioSource>()> create;
+};
+
+/// A HAL sensor source type (IMU, BLE scanner, radio sync receiver; built in, host-side like audio sources).
+struct SensorSourceDescriptor {
+  std::string name;
+  std::string description;
+  SensorKind kind = SensorKind::Imu;  ///< what it produces: the config section it may appear in
+  ParamSchema schema;
+  std::function<std::unique_ptr<SensorSource>()> create;
 };
 
 /// A plugin library could not be loaded or one of its descriptors is invalid. what() names the file
@@ -48,6 +58,9 @@ class Registry {
   /// Adds a built-in audio source. Throws std::invalid_argument on an empty name, a missing factory or
   /// a duplicate name.
   void add_source(SourceDescriptor source);
+  /// Adds a built-in sensor source. Throws std::invalid_argument on an empty name, a missing factory or
+  /// a duplicate name (sensor source names are unique across kinds).
+  void add_sensor_source(SensorSourceDescriptor source);
 
   /// dlopens `path` and adds every descriptor it enumerates. Throws PluginLoadError (nothing from a
   /// refused library is added). Returns the names added.
@@ -59,6 +72,7 @@ class Registry {
   /// nullptr when absent.
   const locus_plugin_descriptor* find_plugin(std::string_view name) const;
   const SourceDescriptor* find_source(std::string_view name) const;
+  const SensorSourceDescriptor* find_sensor_source(std::string_view name) const;
 
   struct PluginEntry {
     const locus_plugin_descriptor* descriptor;
@@ -66,14 +80,17 @@ class Registry {
   };
   const std::vector<PluginEntry>& plugins() const noexcept { return plugins_; }
   const std::vector<SourceDescriptor>& sources() const noexcept { return sources_; }
+  const std::vector<SensorSourceDescriptor>& sensor_sources() const noexcept { return sensor_sources_; }
 
   std::unique_ptr<Detector> create_detector(std::string_view name) const;    ///< throws if absent/not a detector
   std::unique_ptr<Localizer> create_localizer(std::string_view name) const;  ///< throws if absent/not a localizer
   std::unique_ptr<AudioSource> create_source(std::string_view name) const;   ///< throws if absent
+  std::unique_ptr<SensorSource> create_sensor_source(std::string_view name) const;  ///< throws if absent
 
  private:
   std::vector<PluginEntry> plugins_;
   std::vector<SourceDescriptor> sources_;
+  std::vector<SensorSourceDescriptor> sensor_sources_;
   std::vector<void*> libraries_;  // dlopen handles, closed in the destructor after instances are gone
 };
 

@@ -7,6 +7,7 @@ namespace locus {
 namespace {
 constexpr std::array<std::string_view, kEventTypeCount> kNames = {
     "audio_detection", "imu_sample", "ble_advertisement", "radio_sync", "step", "attitude", "estimate",
+    "decay_features",
 };
 }  // namespace
 

@@ -79,6 +79,12 @@ std::string id_expected() {
   return "letters, digits, '_' or '-' (at most " + std::to_string(kMaxNameLength) + " characters)";
 }
 
+/// "an imu", "a ble", "a sync".
+std::string with_article(std::string_view word) {
+  const bool vowel = !word.empty() && std::string_view("aeiou").find(word.front()) != std::string_view::npos;
+  return (vowel ? "an " : "a ") + std::string(word);
+}
+
 std::string plugin_kind_name(std::uint32_t kind) {
   return kind == LOCUS_PLUGIN_DETECTOR ? "detector" : kind == LOCUS_PLUGIN_LOCALIZER ? "localizer" : "plugin";
 }
@@ -269,7 +275,8 @@ class Checker {
 const std::vector<std::string> kTopKeys = {"sample_rate_hz", "log_level", "plugin_dirs", "output", "devices",
                                            "localizers"};
 const std::vector<std::string> kOutputKeys = {"path", "events"};
-const std::vector<std::string> kDeviceKeys = {"id", "audio", "detectors"};
+const std::vector<std::string> kDeviceKeys = {"id", "audio", "imu", "ble", "sync", "detectors"};
+const std::vector<std::string> kSensorKeys = {"source", "queue_capacity", "params"};
 const std::vector<std::string> kAudioKeys = {"source", "ring_frames", "block_frames", "params"};
 const std::vector<std::string> kComponentKeys = {"plugin", "name", "params"};
 const std::vector<std::string> kLogLevels = {"trace", "debug", "info", "warn", "error"};
@@ -435,7 +442,7 @@ class ConfigChecker {
     }
     if (const Entry* e = s->find("id")) {
       if (auto id = c_.string(*e, child(path, "id"))) {
-        if (!valid_id(*id)) {
+        if (!valid_id(*id) && *id != kTemplateDeviceId) {
           c_.error(e->where(), child(path, "id"), "expected a device id of " + id_expected() + ", got " +
                                                       got_text(scalar_text(e->value)));
         } else if (const auto seen = device_lines_.find(*id); seen != device_lines_.end()) {
@@ -450,6 +457,10 @@ class ConfigChecker {
       c_.missing(*s, path, "id");
     }
     if (const Entry* e = s->find("audio")) dev.audio = audio(*e, child(path, "audio"));
+    for (const SensorKind kind : {SensorKind::Imu, SensorKind::Ble, SensorKind::Sync}) {
+      const std::string key(sensor_kind_name(kind));
+      if (const Entry* e = s->find(key)) dev.sensor(kind) = sensor(*e, child(path, key), kind);
+    }
     config_.devices.push_back(std::move(dev));
     if (const Entry* e = s->find("detectors")) {
       const std::string list_path = child(path, "detectors");
@@ -509,6 +520,50 @@ class ConfigChecker {
       c_.error(params->where(), child(path, "params"), "expected a mapping, got " + got(params->value));
     }
     return a;
+  }
+
+  std::optional<SensorConfig> sensor(const Entry& e, const std::string& path, SensorKind kind) {
+    const auto s = c_.mapping(e.value, e.where(), path, kSensorKeys);
+    if (!s) return std::nullopt;
+    SensorConfig out;
+    const SensorSourceDescriptor* source = nullptr;
+    const std::string kind_name(sensor_kind_name(kind));
+    if (const Entry* src = s->find("source")) {
+      if (auto name = c_.string(*src, child(path, "source"))) {
+        source = registry_.find_sensor_source(*name);
+        std::vector<std::string> names;
+        for (const SensorSourceDescriptor& d : registry_.sensor_sources()) {
+          if (d.kind == kind) names.push_back(d.name);
+        }
+        if (source == nullptr || source->kind != kind) {
+          std::string m = source == nullptr ? "unknown " + kind_name + " source '" + *name + "'"
+                                            : "'" + *name + "' is " + with_article(sensor_kind_name(source->kind)) +
+                                                  " source, not " + with_article(kind_name) + " source";
+          if (const std::string guess = closest(*name, names); !guess.empty() && guess != *name) {
+            m += "; did you mean '" + guess + "'?";
+          }
+          m += names.empty() ? " (no " + kind_name + " sources are registered)" : " (registered: " + join(names) + ")";
+          c_.error(src->where(), child(path, "source"), std::move(m));
+          source = nullptr;
+        }
+        out.source = std::move(*name);
+      }
+    } else {
+      c_.missing(*s, path, "source");
+    }
+    if (const Entry* q = s->find("queue_capacity")) {
+      if (const auto v = c_.value(make_spec(ParamType::Int, 16.0, 16777216.0), *q, child(path, "queue_capacity"))) {
+        out.queue_capacity = static_cast<std::uint32_t>(std::get<std::int64_t>(*v));
+      }
+    }
+    const Entry* params = s->find("params");
+    if (source != nullptr) {
+      out.params = c_.params(source->schema, params, s->mark(), child(path, "params"),
+                             kind_name + " source '" + source->name + "'");
+    } else if (params != nullptr && !params->value.IsNull() && !params->value.IsMap()) {
+      c_.error(params->where(), child(path, "params"), "expected a mapping, got " + got(params->value));
+    }
+    return out;
   }
 
   void component(const YAML::Node& node, const std::string& path, const YAML::Mark& list_mark, std::uint32_t kind,

@@ -73,6 +73,17 @@ struct ToJson {
     j["q_wxyz"] = vec(e.q_wxyz);
     j["heading_rad"] = num(e.heading_rad);
   }
+  void operator()(const DecayFeatures& e) const {
+    j["device"] = e.device.str();
+    j["detector"] = e.detector.str();
+    j["stream"] = e.stream;
+    j["channel"] = e.channel;
+    j["template"] = e.template_index;
+    j["frame"] = e.frame;
+    j["t_s"] = e.sample_rate_hz > 0 ? num(e.frame / e.sample_rate_hz) : nlohmann::ordered_json(nullptr);
+    j["decay_s"] = vec(e.decay_s);
+    j["noise_margin_db"] = num(e.noise_margin_db);
+  }
   void operator()(const Estimate& e) const {
     j["plugin"] = e.plugin.str();
     j["reference"] = e.reference.str();

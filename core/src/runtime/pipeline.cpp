@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <stdexcept>
 
 #include "locus/fftw_planner.hpp"
@@ -59,20 +60,159 @@ std::size_t AudioBlockRunner::step(bool end_of_stream) noexcept {
   return frames;
 }
 
+// ------------------------------------------------------------------ DeviceRunner
+
+DeviceRunner::DeviceRunner(double sample_rate_hz, EventSink& sink, const RtEventQueue* backpressure)
+    : fs_(sample_rate_hz), sink_(sink), backpressure_(backpressure) {
+  sensors_.reserve(kMaxSensors);
+}
+
+void DeviceRunner::set_audio(AudioBlockRunner& runner, AudioRing& ring, const AudioSource& source,
+                             std::uint32_t block_frames) {
+  audio_ = &runner;
+  ring_ = &ring;
+  audio_source_ = &source;
+  block_frames_ = block_frames;
+  audio_live_ = source.live();
+  audio_ended_ = false;
+  all_non_live_ = all_non_live_ && !audio_live_;
+}
+
+void DeviceRunner::add_sensor(SensorQueue& queue, const SensorSource& source, std::vector<Detector*> detectors) {
+  if (sensors_.size() >= kMaxSensors) throw std::invalid_argument("DeviceRunner: too many sensor streams");
+  Sensor s;
+  s.queue = &queue;
+  s.source = &source;
+  s.kind = source.kind();
+  s.live = source.live();
+  s.detectors = std::move(detectors);
+  all_non_live_ = all_non_live_ && !s.live;
+  sensors_.push_back(std::move(s));
+}
+
+void DeviceRunner::deliver(Sensor& s) noexcept {
+  sink_.emit(s.head);
+  if (s.kind == SensorKind::Imu) {
+    const ImuSample& sample = std::get<ImuSample>(s.head);
+    for (Detector* d : s.detectors) d->process_imu(&sample, 1, sink_);
+  } else if (s.kind == SensorKind::Ble) {
+    const BleAdvertisement& advert = std::get<BleAdvertisement>(s.head);
+    for (Detector* d : s.detectors) d->process_ble(&advert, 1, sink_);
+  }
+  s.has_head = false;
+  ++sensor_events_;
+}
+
+bool DeviceRunner::step(bool stop_requested) noexcept {
+  if (done_) return false;
+  // A lossless device waits for the dispatcher rather than dropping events.
+  if (all_non_live_ && backpressure_ != nullptr &&
+      backpressure_->size_approx() > backpressure_->capacity() / 2) {
+    ++waits_;
+    return false;
+  }
+  bool behind = false;  // a non-live stream has no head yet and has not ended: its next item is unknown
+
+  // Sensor heads. "Ended" is decided only after seeing finished() and then an empty queue (finished()
+  // is released after the last push).
+  Sensor* best = nullptr;
+  double best_t = 0.0;
+  for (Sensor& s : sensors_) {
+    if (!s.has_head && !s.ended) {
+      if (s.queue->try_pop(s.head)) {
+        s.has_head = true;
+      } else if (stop_requested || s.source->finished()) {
+        if (s.queue->try_pop(s.head)) {
+          s.has_head = true;
+        } else {
+          s.ended = true;
+        }
+      } else if (!s.live) {
+        behind = true;
+      }
+    }
+    if (s.has_head) {
+      const double t = sensor_event_time_s(s.head);
+      if (best == nullptr || t < best_t) {
+        best = &s;
+        best_t = t;
+      }
+    }
+  }
+
+  // Audio head: the start of the next block, known once a whole block (or the tail) is readable.
+  bool audio_ready = false;
+  bool audio_tail = false;
+  if (!audio_ended_) {
+    const bool ended = stop_requested || audio_source_->finished();
+    const std::size_t readable = ring_->readable_frames();
+    if (readable >= block_frames_) {
+      audio_ready = true;
+    } else if (ended) {
+      if (readable > 0) {
+        audio_ready = true;
+        audio_tail = true;
+      } else {
+        audio_ended_ = true;
+      }
+    } else if (!audio_live_) {
+      behind = true;
+    }
+  }
+
+  if (behind && !stop_requested) {
+    ++waits_;
+    return false;
+  }
+  if (audio_ready) {
+    // Frame numbers after an overrun gap are approximate here (live streams only: best effort).
+    const double block_start = static_cast<double>(audio_->next_frame());
+    if (best == nullptr || !(best_t * fs_ < block_start)) return audio_->step(audio_tail) > 0;
+  }
+  if (best != nullptr) {
+    deliver(*best);
+    return true;
+  }
+  if (audio_ended_ && std::all_of(sensors_.begin(), sensors_.end(), [](const Sensor& s) { return s.ended; })) {
+    done_ = true;
+  }
+  return false;
+}
+
 // ------------------------------------------------------------------ Pipeline
+
+namespace {
+
+std::uint32_t plugin_inputs(const Registry& registry, const std::string& plugin) {
+  const locus_plugin_descriptor* d = registry.find_plugin(plugin);
+  return d != nullptr ? d->inputs : 0u;
+}
+
+}  // namespace
 
 struct Pipeline::Device {
   std::string id;
+  const DeviceGeometry* geometry = nullptr;
   std::unique_ptr<SpdLogger> source_log;
   std::unique_ptr<AudioSource> source;
   std::unique_ptr<AudioRing> ring;
+  struct Sensor {
+    SensorKind kind;
+    std::string name;
+    std::unique_ptr<SpdLogger> log;
+    std::unique_ptr<SensorSource> source;
+    std::unique_ptr<SensorQueue> queue;
+  };
+  std::vector<Sensor> sensors;
   std::vector<std::unique_ptr<SpdLogger>> detector_logs;
   std::vector<std::unique_ptr<Detector>> detectors;
   RtEventQueue* queue = nullptr;
   std::unique_ptr<AudioBlockRunner> runner;
+  std::unique_ptr<DeviceRunner> device_runner;
   std::thread thread;
   std::atomic<bool> stop_requested{false};
   std::atomic<bool> done{false};
+  bool has_streams() const { return source != nullptr || !sensors.empty(); }
 };
 
 struct Pipeline::LocalizerInstance {
@@ -81,22 +221,40 @@ struct Pipeline::LocalizerInstance {
   std::unique_ptr<Localizer> localizer;
 };
 
-Pipeline::Pipeline(const Config& config, Registry& registry)
+Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions options)
     : config_(config),
       registry_(registry),
-      link_(std::make_unique<InProcessLink>()),
+      options_(std::move(options)),
       fft_(std::make_unique<FftwPlanner>()),
       clock_(std::make_unique<SteadyClock>()) {
+  if (options_.link == nullptr) {
+    own_link_ = std::make_unique<InProcessLink>();
+    link_ = own_link_.get();
+  } else {
+    link_ = options_.link;
+  }
+  for (auto& [id, spec] : options_.geometry) spec.geometry.emits_json = spec.emits_json.c_str();
+  const auto geometry_of = [this](const std::string& id) -> const DeviceGeometry* {
+    const auto it = options_.geometry.find(id);
+    return it == options_.geometry.end() ? nullptr : &it->second.geometry;
+  };
   dispatched_link_ = std::make_unique<DispatchedLink>(*link_, bus_);
   publisher_ = std::make_unique<BusPublisher>(bus_);
 
   for (const DeviceConfig& dc : config_.devices) {
+    if (dc.is_template()) continue;
     auto dev = std::make_unique<Device>();
     dev->id = dc.id;
+    dev->geometry = geometry_of(dc.id);
+    StreamInfo info;
+    info.device = DeviceId(dc.id);
+    info.channels = 0;
+    info.sample_rate_hz = config_.sample_rate_hz;
+    info.max_block_frames = dc.audio ? dc.audio->block_frames : 256;
     if (dc.audio) {
       const AudioConfig& ac = *dc.audio;
       dev->source_log = std::make_unique<SpdLogger>(dc.id + "/" + ac.source);
-      HostContext ctx{*dev->source_log, *clock_, *fft_, *dispatched_link_, ac.source, dc.id};
+      HostContext ctx{*dev->source_log, *clock_, *fft_, *dispatched_link_, ac.source, dc.id, dev->geometry};
       try {
         dev->source = registry_.create_source(ac.source);
         dev->source->open(ac.params, ctx);
@@ -109,36 +267,89 @@ Pipeline::Pipeline(const Config& config, Registry& registry)
                                  std::to_string(config_.sample_rate_hz) + " Hz (sample_rate_hz)");
       }
       dev->ring = std::make_unique<AudioRing>(dev->source->channels(), ac.ring_frames);
-      StreamInfo info;
-      info.device = DeviceId(dc.id);
       info.channels = dev->source->channels();
       info.sample_rate_hz = dev->source->sample_rate_hz();
-      info.max_block_frames = ac.block_frames;
-      for (const ComponentConfig& cc : dc.detectors) {
-        auto log = std::make_unique<SpdLogger>(cc.name);
-        HostContext dctx{*log, *clock_, *fft_, *dispatched_link_, cc.name, dc.id};
-        try {
-          auto det = registry_.create_detector(cc.plugin);
-          det->configure(info, cc.params, dctx);
-          dev->detectors.push_back(std::move(det));
-        } catch (const std::exception& e) {
-          throw std::runtime_error("device '" + dc.id + "': detector '" + cc.name + "': " + e.what());
+    }
+    std::size_t sensor_capacity = 0;
+    for (const SensorKind kind : {SensorKind::Imu, SensorKind::Ble, SensorKind::Sync}) {
+      const std::optional<SensorConfig>& sc = dc.sensor(kind);
+      if (!sc) continue;
+      const std::string what = std::string(sensor_kind_name(kind)) + " source '" + sc->source + "'";
+      Device::Sensor s{kind, sc->source, std::make_unique<SpdLogger>(dc.id + "/" + sc->source), nullptr, nullptr};
+      HostContext ctx{*s.log, *clock_, *fft_, *dispatched_link_, sc->source, dc.id, dev->geometry};
+      try {
+        s.source = registry_.create_sensor_source(sc->source);
+        if (s.source->kind() != kind) {
+          throw std::runtime_error("produces " + std::string(sensor_kind_name(s.source->kind())) + " events");
         }
-        dev->detector_logs.push_back(std::move(log));
+        s.source->open(sc->params, ctx);
+      } catch (const std::exception& e) {
+        throw std::runtime_error("device '" + dc.id + "': " + what + ": " + e.what());
       }
-      dev->queue = &bus_.make_rt_queue(dc.id, 4096);
-      std::vector<Detector*> raw;
-      for (auto& d : dev->detectors) raw.push_back(d.get());
-      dev->runner = std::make_unique<AudioBlockRunner>(*dev->ring, ac.block_frames, std::move(raw), *dev->queue);
+      s.queue = std::make_unique<SensorQueue>(sc->queue_capacity);
+      sensor_capacity += s.queue->capacity();
+      dev->sensors.push_back(std::move(s));
+    }
+    if (!dev->has_streams()) {
+      if (!dc.detectors.empty()) {
+        throw std::runtime_error("device '" + dc.id + "' has detectors but no stream (audio, imu, ble or sync)");
+      }
+      devices_.push_back(std::move(dev));
+      continue;
+    }
+    std::uint32_t available = 0;
+    if (dev->source) available |= kInputAudio;
+    for (const auto& s : dev->sensors) {
+      if (s.kind == SensorKind::Imu) available |= kInputImu;
+      if (s.kind == SensorKind::Ble) available |= kInputBle;
+    }
+    std::vector<Detector*> audio_detectors, imu_detectors, ble_detectors;
+    for (const ComponentConfig& cc : dc.detectors) {
+      const std::uint32_t inputs = plugin_inputs(registry_, cc.plugin);
+      if ((inputs & available) == 0) {
+        throw std::runtime_error("device '" + dc.id + "': detector '" + cc.name + "' consumes " +
+                                 ((inputs & kInputAudio) ? std::string("audio") : std::string()) +
+                                 ((inputs & kInputImu) ? std::string(" imu") : std::string()) +
+                                 ((inputs & kInputBle) ? std::string(" ble") : std::string()) +
+                                 " but the device has no such stream");
+      }
+      auto log = std::make_unique<SpdLogger>(cc.name);
+      HostContext dctx{*log, *clock_, *fft_, *dispatched_link_, cc.name, dc.id, dev->geometry};
+      try {
+        auto det = registry_.create_detector(cc.plugin);
+        det->configure(info, cc.params, dctx);
+        if ((inputs & kInputAudio) && dev->source) audio_detectors.push_back(det.get());
+        if ((inputs & kInputImu)) imu_detectors.push_back(det.get());
+        if ((inputs & kInputBle)) ble_detectors.push_back(det.get());
+        dev->detectors.push_back(std::move(det));
+      } catch (const std::exception& e) {
+        throw std::runtime_error("device '" + dc.id + "': detector '" + cc.name + "': " + e.what());
+      }
+      dev->detector_logs.push_back(std::move(log));
+    }
+    dev->queue = &bus_.make_rt_queue(dc.id, 4096 + 2 * sensor_capacity);
+    dev->device_runner = std::make_unique<DeviceRunner>(info.sample_rate_hz, *dev->queue, dev->queue);
+    if (dev->source) {
+      dev->runner = std::make_unique<AudioBlockRunner>(*dev->ring, dc.audio->block_frames, std::move(audio_detectors),
+                                                       *dev->queue);
+      dev->device_runner->set_audio(*dev->runner, *dev->ring, *dev->source, dc.audio->block_frames);
+    }
+    for (auto& s : dev->sensors) {
+      dev->device_runner->add_sensor(*s.queue, *s.source,
+                                     s.kind == SensorKind::Imu   ? imu_detectors
+                                     : s.kind == SensorKind::Ble ? ble_detectors
+                                                                 : std::vector<Detector*>{});
     }
     devices_.push_back(std::move(dev));
   }
 
+  const DeviceGeometry* node_geometry = geometry_of(options_.localizer_device);
   for (const ComponentConfig& cc : config_.localizers) {
     auto inst = std::make_unique<LocalizerInstance>();
     inst->name = cc.name;
-    inst->log = std::make_unique<SpdLogger>(cc.name);
-    HostContext ctx{*inst->log, *clock_, *fft_, *dispatched_link_, cc.name, ""};
+    inst->log = std::make_unique<SpdLogger>(options_.localizer_device.empty() ? cc.name
+                                                                              : options_.localizer_device + "/" + cc.name);
+    HostContext ctx{*inst->log, *clock_, *fft_, *dispatched_link_, cc.name, options_.localizer_device, node_geometry};
     try {
       inst->localizer = registry_.create_localizer(cc.plugin);
       inst->localizer->configure(cc.params, ctx);
@@ -153,10 +364,12 @@ Pipeline::Pipeline(const Config& config, Registry& registry)
     localizers_.push_back(std::move(inst));
   }
 
-  writer_ = std::make_unique<JsonLinesWriter>(config_.output.path);
-  for (EventType t : config_.output.events) {
-    JsonLinesWriter* w = writer_.get();
-    bus_.subscribe(t, [w](const Event& e) { w->write(e); });
+  if (options_.write_output) {
+    writer_ = std::make_unique<JsonLinesWriter>(config_.output.path);
+    for (EventType t : config_.output.events) {
+      JsonLinesWriter* w = writer_.get();
+      bus_.subscribe(t, [w](const Event& e) { w->write(e); });
+    }
   }
 }
 
@@ -167,11 +380,10 @@ void Pipeline::subscribe(EventType type, EventBus::Handler handler) { bus_.subsc
 void Pipeline::run_device(Device& dev) {
   using namespace std::chrono_literals;
   for (;;) {
-    const bool ended = dev.stop_requested.load(std::memory_order_acquire) || dev.source->finished();
-    const std::size_t n = dev.runner->step(ended);
-    if (n > 0) continue;
-    if (ended && dev.ring->readable_frames() == 0) break;
-    std::this_thread::sleep_for(200us);  // idle: the ring is empty; never inside a detector
+    const bool stop = dev.stop_requested.load(std::memory_order_acquire);
+    if (dev.device_runner->step(stop)) continue;
+    if (dev.device_runner->done()) break;
+    std::this_thread::sleep_for(200us);  // idle: waiting for a stream; never inside a detector
   }
   for (auto& d : dev.detectors) d->finish(*dev.queue);
   dev.done.store(true, std::memory_order_release);
@@ -182,28 +394,30 @@ void Pipeline::start() {
   started_ = true;
   bus_.start();
   for (auto& dev : devices_) {
-    if (!dev->source) continue;
+    if (!dev->device_runner) continue;
     Device* d = dev.get();
     d->thread = std::thread([this, d] { run_device(*d); });
   }
   for (auto& dev : devices_) {
     if (dev->source) dev->source->start(*dev->ring);
+    for (auto& s : dev->sensors) s.source->start(*s.queue);
   }
 }
 
 bool Pipeline::finished() const noexcept {
   for (const auto& dev : devices_) {
-    if (dev->source && !dev->done.load(std::memory_order_acquire)) return false;
+    if (dev->device_runner && !dev->done.load(std::memory_order_acquire)) return false;
   }
   return true;
 }
 
-void Pipeline::stop() {
-  if (stopped_) return;
-  stopped_ = true;
+void Pipeline::stop_inputs() {
+  if (inputs_stopped_) return;
+  inputs_stopped_ = true;
   if (started_) {
     for (auto& dev : devices_) {
       if (dev->source) dev->source->stop();
+      for (auto& s : dev->sensors) s.source->stop();
     }
     for (auto& dev : devices_) {
       dev->stop_requested.store(true, std::memory_order_release);
@@ -211,22 +425,58 @@ void Pipeline::stop() {
     }
     bus_.stop();
   }
-  // The dispatcher has stopped: this thread now delivers. Let link traffic settle before the
-  // localizers finish, and deliver what they publish when they do.
-  auto quiesce = [this] {
-    do {
-      static_cast<InProcessLink&>(*link_).flush();
-    } while (bus_.drain() > 0);
-  };
-  quiesce();
+  // Detectors of devices whose thread never ran (not started) still finish, for symmetry.
+  if (!started_) {
+    for (auto& dev : devices_) {
+      if (!dev->queue) continue;
+      for (auto& d : dev->detectors) d->finish(*dev->queue);
+    }
+  }
+  while (bus_.drain() > 0) {
+  }
+}
+
+std::size_t Pipeline::deliver_pending() {
+  std::size_t total = 0;
+  for (std::size_t n; (n = bus_.drain()) > 0;) total += n;
+  return total;
+}
+
+void Pipeline::finish_localizers() {
+  if (localizers_finished_) return;
+  localizers_finished_ = true;
   for (auto& inst : localizers_) inst->localizer->finish(*publisher_);
-  quiesce();
+}
+
+void Pipeline::settle() {
+  // The dispatcher has stopped: this thread now delivers. Let link traffic settle (own link only; a
+  // shared link is the embedder's to flush).
+  do {
+    if (own_link_) static_cast<InProcessLink&>(*own_link_).flush();
+  } while (deliver_pending() > 0);
+}
+
+void Pipeline::flush() {
+  if (flushed_) return;
+  flushed_ = true;
   for (const DeviceStats& s : stats()) {
     auto log = host_logger();
-    log->info("device {}: {} frames processed, {} lost in {} overruns, {} events dropped{}", s.id, s.frames_processed,
-              s.frames_lost, s.overruns, s.events_dropped, s.source_error.empty() ? "" : ", source error: " + s.source_error);
+    log->info("device {}: {} frames processed, {} lost in {} overruns, {} sensor events ({} dropped), {} events "
+              "dropped{}",
+              s.id, s.frames_processed, s.frames_lost, s.overruns, s.sensor_events, s.sensor_dropped,
+              s.events_dropped, s.source_error.empty() ? "" : ", source error: " + s.source_error);
   }
   if (writer_) writer_->flush();
+}
+
+void Pipeline::stop() {
+  if (stopped_) return;
+  stopped_ = true;
+  stop_inputs();
+  settle();
+  finish_localizers();
+  settle();
+  flush();
 }
 
 std::vector<DeviceStats> Pipeline::stats() const {
@@ -238,8 +488,16 @@ std::vector<DeviceStats> Pipeline::stats() const {
       s.frames_processed = dev->runner->frames_processed();
       s.frames_lost = dev->ring->frames_lost();
       s.overruns = dev->ring->overruns();
-      s.events_dropped = dev->queue->dropped();
-      s.source_error = dev->source->error();
+    }
+    if (dev->queue) s.events_dropped = dev->queue->dropped();
+    if (dev->source) s.source_error = dev->source->error();
+    if (dev->device_runner) s.sensor_events = dev->device_runner->sensor_events_delivered();
+    for (const auto& sensor : dev->sensors) {
+      s.sensor_dropped += sensor.queue->dropped();
+      if (s.source_error.empty()) {
+        const std::string e = sensor.source->error();
+        if (!e.empty()) s.source_error = std::string(sensor_kind_name(sensor.kind)) + " source: " + e;
+      }
     }
     out.push_back(std::move(s));
   }

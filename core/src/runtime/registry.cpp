@@ -206,4 +206,33 @@ std::unique_ptr<AudioSource> Registry::create_source(std::string_view name) cons
   return p;
 }
 
+void Registry::add_sensor_source(SensorSourceDescriptor source) {
+  if (source.name.empty()) throw std::invalid_argument("cannot add a sensor source without a name");
+  if (!source.create) throw std::invalid_argument("sensor source '" + source.name + "' has no factory");
+  if (find_sensor_source(source.name) != nullptr) {
+    throw std::invalid_argument("sensor source '" + source.name + "' is already registered");
+  }
+  sensor_sources_.push_back(std::move(source));
+}
+
+const SensorSourceDescriptor* Registry::find_sensor_source(std::string_view name) const {
+  for (const SensorSourceDescriptor& s : sensor_sources_) {
+    if (s.name == name) return &s;
+  }
+  return nullptr;
+}
+
+std::unique_ptr<SensorSource> Registry::create_sensor_source(std::string_view name) const {
+  const SensorSourceDescriptor* s = find_sensor_source(name);
+  if (s == nullptr) throw std::runtime_error("unknown sensor source '" + std::string(name) + "'");
+  std::unique_ptr<SensorSource> p = s->create();
+  if (!p) throw std::runtime_error("sensor source '" + std::string(name) + "' failed to create an instance");
+  if (p->kind() != s->kind) {
+    throw std::runtime_error("sensor source '" + std::string(name) + "' produces " +
+                             std::string(sensor_kind_name(p->kind())) + " but is registered as " +
+                             std::string(sensor_kind_name(s->kind)));
+  }
+  return p;
+}
+
 }  // namespace locus

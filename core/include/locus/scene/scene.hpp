@@ -112,8 +112,9 @@ void write_scene_yaml(const Scene& scene);
 
 /// Opens the header of every referenced audio.wav (cheap: no samples are read) and checks its channel
 /// count against the device's mics and its rate against sample_rate. Every mismatch (and every header
-/// error) is collected, then thrown as one SceneError; a truncated data chunk is reported too.
-void validate_scene_streams(const Scene& scene);
+/// error) is collected, then thrown as one SceneError. A truncated data chunk is not an error (the
+/// readers deliver the frames present): it is returned as a warning line, "file: byte N: ...".
+std::vector<std::string> validate_scene_streams(const Scene& scene);
 
 /// Signal types this reader knows ("lfm", "gold", "multitone", "ble").
 bool is_known_signal_type(const std::string& type) noexcept;

@@ -1,0 +1,514 @@
+// The `chirp` LFM matched-filter detector; algorithm, outputs and gap handling are documented in
+// chirp.hpp, the parameters in docs/detectors.md.
+#include "chirp/chirp.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "locus/dsp/correlator.hpp"
+#include "locus/dsp/peak.hpp"
+#include "locus/dsp/prescreen.hpp"
+#include "locus/dsp/signals.hpp"
+
+namespace locus {
+
+namespace {
+
+ParamSpec fspec(std::string key, double def, double min, double max, std::string unit, std::string doc) {
+  ParamSpec s;
+  s.key = std::move(key);
+  s.type = ParamType::Float;
+  s.default_value = def;
+  s.min = min;
+  s.max = max;
+  s.unit = std::move(unit);
+  s.doc = std::move(doc);
+  return s;
+}
+
+enum class Refine : std::uint8_t { Phase, Gaussian, Parabolic };
+
+class ChirpDetector final : public Detector {
+ public:
+  void configure(const StreamInfo& info, const Params& params, HostContext& ctx) override {
+    log_ = &ctx.log;
+    device_ = info.device;
+    detector_ = NameTag(ctx.instance);
+    stream_ = info.stream;
+    rate_ = info.sample_rate_hz;
+    if (!(rate_ > 0)) throw std::runtime_error("chirp: sample rate must be > 0");
+    if (info.channels == 0) throw std::runtime_error("chirp: the stream has no channels");
+    channels_ = info.channels;
+
+    // Templates: the `templates` quadruples when given, else the single f0/f1/duration/fade template.
+    std::vector<dsp::SignalSpec> specs;
+    const std::vector<double>& list = params.get_floats("templates");
+    if (!list.empty()) {
+      if (list.size() % 4 != 0)
+        throw std::runtime_error("chirp: templates must hold f0_hz, f1_hz, duration_s, fade_s quadruples; got " +
+                                 std::to_string(list.size()) + " values");
+      for (std::size_t i = 0; i < list.size(); i += 4) specs.push_back(lfm(list[i], list[i + 1], list[i + 2], list[i + 3]));
+    } else {
+      specs.push_back(lfm(params.get_float("f0_hz"), params.get_float("f1_hz"), params.get_float("duration_s"),
+                          params.get_float("fade_s")));
+    }
+    std::vector<std::vector<float>> templates;
+    std::vector<double> bandwidth_hz;
+    for (std::size_t t = 0; t < specs.size(); ++t) {
+      const dsp::SignalSpec& s = specs[t];
+      const std::string what = "chirp: template " + std::to_string(t) + " (" + std::to_string(s.f0_hz) + "-" +
+                               std::to_string(s.f1_hz) + " Hz, " + std::to_string(s.duration_s) + " s)";
+      if (!(s.duration_s > 0.0)) throw std::runtime_error(what + ": duration_s must be > 0");
+      if (std::max(s.f0_hz, s.f1_hz) > rate_ / 2.0)
+        throw std::runtime_error(what + ": frequencies must not exceed Nyquist (" + std::to_string(rate_ / 2.0) + " Hz)");
+      if (std::fabs(s.f1_hz - s.f0_hz) < 1.0) throw std::runtime_error(what + ": f0_hz and f1_hz must differ (an LFM sweep)");
+      if (2.0 * s.fade_s > s.duration_s) throw std::runtime_error(what + ": fade_s must be at most half of duration_s");
+      std::vector<float> h = dsp::render_signal(s, rate_);
+      if (h.size() < 8) throw std::runtime_error(what + ": shorter than 8 samples at this sample rate");
+      templates.push_back(std::move(h));
+      bandwidth_hz.push_back(std::fabs(s.f1_hz - s.f0_hz));
+    }
+    templates_ = templates.size();
+
+    threshold_db_ = params.get_float("threshold_db");
+    threshold_ = std::pow(10.0, threshold_db_ / 10.0);
+    const double rho = params.get_float("min_coefficient");
+    min_rho2_ = rho * rho;
+    const double ratio = params.get_float("earliest_ratio");
+    ratio2_ = ratio * ratio;
+    window_frames_ = static_cast<std::uint64_t>(std::llround(params.get_float("earliest_window_s") * rate_));
+    spacing_frames_ = static_cast<std::uint64_t>(std::llround(params.get_float("min_spacing_s") * rate_));
+    prescreen_ = params.get_bool("prescreen");
+    const std::string& refine = params.get_string("refine");
+    refine_ = refine == "gaussian" ? Refine::Gaussian : refine == "parabolic" ? Refine::Parabolic : Refine::Phase;
+
+    const auto fft_size = params.get_int("fft_size");
+    if (fft_size != 0 && (fft_size < 0 || (fft_size & (fft_size - 1)) != 0))
+      throw std::runtime_error("chirp: fft_size must be 0 (automatic) or a power of two, got " + std::to_string(fft_size));
+    dsp::Correlator::Options opt;
+    opt.channels = channels_;
+    opt.fft_size = static_cast<std::size_t>(fft_size);
+    opt.analytic = true;
+    try {
+      corr_.configure(templates, ctx.fft, opt);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(std::string("chirp: ") + e.what());
+    }
+    const std::size_t n = corr_.fft_size();
+
+    // Per template: mainlobe guard (the envelope's mainlobe is ~fs/B wide each side) and how long an
+    // event keeps collecting after its strongest lag: one template length plus the guard, because the
+    // range sidelobes of a strong chirp (and its cross-terms with other templates) reach up to a
+    // template length before the mainlobe and may open the event early.
+    guard_.resize(templates_);
+    span_.resize(templates_);
+    std::uint64_t longest_span = 0;
+    for (std::size_t t = 0; t < templates_; ++t) {
+      guard_[t] = static_cast<std::uint64_t>(std::ceil(2.0 * rate_ / bandwidth_hz[t])) + 2;
+      span_[t] = templates[t].size() + guard_[t];
+      longest_span = std::max(longest_span, window_frames_ + span_[t] + 2 * guard_[t]);
+    }
+    ring_size_ = std::bit_ceil(static_cast<std::size_t>(longest_span + 16));
+    ring_mask_ = ring_size_ - 1;
+
+    tracks_.assign(channels_ * templates_, Track{});
+    ring_re_.assign(channels_ * templates_ * ring_size_, 0.0f);
+    ring_im_.assign(channels_ * templates_ * ring_size_, 0.0f);
+    ring_pow_.assign(channels_ * templates_ * ring_size_, 0.0f);
+    ring_ok_.assign(channels_ * templates_ * ring_size_, 0);
+    pow_.assign(n, 0.0f);
+    sorted_.assign(n, 0.0f);
+    screens_.assign(channels_ * templates_, dsp::BandPrescreen{});
+    const double prescreen_db = params.get_float("prescreen_db");
+    for (std::size_t t = 0; t < templates_; ++t) {
+      const double lo = std::min(specs[t].f0_hz, specs[t].f1_hz), hi = std::max(specs[t].f0_hz, specs[t].f1_hz);
+      for (std::uint32_t c = 0; c < channels_; ++c) {
+        try {
+          screens_[c * templates_ + t].configure(n, rate_, lo, hi, prescreen_db);
+        } catch (const std::invalid_argument& e) {
+          if (prescreen_) throw std::runtime_error("chirp: template " + std::to_string(t) + ": " + e.what());
+        }
+      }
+    }
+    origin_.assign(channels_, 0);
+    started_ = false;
+    expected_frame_ = 0;
+    dropped_ = 0;
+    windows_ = 0;
+    windows_skipped_ = 0;
+  }
+
+  void process_audio(const AudioBlock& block, EventSink& out) noexcept override {
+    if (!started_) {
+      restart(block.first_frame);
+    } else if (block.lost_before > 0 || block.first_frame != expected_frame_) {
+      for (std::uint32_t c = 0; c < channels_; ++c) drain(c, out);
+      restart(block.first_frame);
+    }
+    const std::uint32_t nch = std::min(block.channels, channels_);
+    for (std::uint32_t c = 0; c < nch; ++c) {
+      const float* x = block.channel_data[c];
+      std::size_t pos = 0;
+      while (pos < block.frames) {
+        pos += corr_.push(c, x + pos, block.frames - pos);
+        if (corr_.full(c)) {
+          window(c, corr_.hop(), out);
+          corr_.advance(c);
+        }
+      }
+    }
+    expected_frame_ = block.first_frame + block.frames;
+  }
+
+  void finish(EventSink& out) override {
+    if (started_)
+      for (std::uint32_t c = 0; c < channels_; ++c) drain(c, out);
+    started_ = false;
+    if (dropped_ > 0 && log_)
+      log_->warn("chirp: " + std::to_string(dropped_) + " detections dropped (event queue full)");
+    if (log_)
+      log_->debug("chirp: " + std::to_string(windows_) + " windows, " + std::to_string(windows_skipped_) +
+                  " template correlations skipped by the pre-screen");
+  }
+
+ private:
+  struct Track {
+    double noise = 0.0;          // tracked noise power of |z|^2 (0 = none yet)
+    std::uint64_t next_lag = 0;  // next lag this track will see (segment-relative)
+    std::uint64_t allowed = 0;   // first lag a new event may open at (min spacing)
+    bool open = false;
+    std::uint64_t t0 = 0, best_lag = 0, end = 0;
+    double best = 0.0;
+    double thr_pow = 0.0;        // absolute threshold when the event opened
+    double noise_at_open = 0.0;
+  };
+
+  static dsp::SignalSpec lfm(double f0, double f1, double duration, double fade) {
+    dsp::SignalSpec s;
+    s.type = "lfm";
+    s.f0_hz = f0;
+    s.f1_hz = f1;
+    s.duration_s = duration;
+    s.fade_s = fade;
+    s.amplitude = 1.0;
+    return s;
+  }
+
+  void restart(std::uint64_t first_frame) noexcept {
+    for (std::uint32_t c = 0; c < channels_; ++c) {
+      corr_.reset(c, 0);
+      origin_[c] = first_frame;
+      for (std::size_t t = 0; t < templates_; ++t) {
+        Track& tr = track(c, t);
+        tr.next_lag = 0;
+        tr.allowed = 0;
+        tr.open = false;
+      }
+    }
+    started_ = true;
+  }
+
+  /// Correlates what is left of channel c's contiguous audio and closes its open events.
+  void drain(std::uint32_t c, EventSink& out) noexcept {
+    const std::size_t valid = corr_.flush(c);
+    if (valid > 0) window_transformed(c, valid, out);
+    for (std::size_t t = 0; t < templates_; ++t) {
+      Track& tr = track(c, t);
+      if (tr.open) finalize(c, t, out);
+    }
+  }
+
+  void window(std::uint32_t c, std::size_t count, EventSink& out) noexcept {
+    corr_.transform(c);
+    window_transformed(c, count, out);
+  }
+
+  void window_transformed(std::uint32_t c, std::size_t count, EventSink& out) noexcept {
+    ++windows_;
+    const std::uint64_t base = corr_.window_start(c);
+    for (std::size_t t = 0; t < templates_; ++t) {
+      dsp::BandPrescreen& screen = screens_[c * templates_ + t];
+      if (prescreen_ && !screen.pass(corr_.spectrum())) {
+        ++windows_skipped_;
+        skip(c, t, base, count, out);
+        screen.note_quiet(true);
+        continue;
+      }
+      corr_.correlate(t);
+      const bool crossed = scan(c, t, base, count, out);
+      if (prescreen_ && !crossed) screen.note_quiet(false);
+    }
+  }
+
+  /// Lags [base, base + count) of a window the pre-screen skipped: nothing above the noise.
+  void skip(std::uint32_t c, std::size_t t, std::uint64_t base, std::size_t count, EventSink& out) noexcept {
+    Track& tr = track(c, t);
+    const std::size_t r0 = (c * templates_ + t) * ring_size_;
+    for (std::size_t i = 0; i < count; ++i) {
+      const std::uint64_t lag = base + i;
+      const std::size_t r = r0 + (lag & ring_mask_);
+      ring_re_[r] = ring_im_[r] = ring_pow_[r] = 0.0f;
+      ring_ok_[r] = 0;
+      tr.next_lag = lag + 1;
+      if (tr.open && lag > tr.end) finalize(c, t, out);
+    }
+  }
+
+  /// Scans lags [base, base + count) of template t's correlation; true if any crossed the threshold.
+  bool scan(std::uint32_t c, std::size_t t, std::uint64_t base, std::size_t count, EventSink& out) noexcept {
+    Track& tr = track(c, t);
+    const float* re = corr_.real(t);
+    const float* im = corr_.imag(t);
+    float* pw = pow_.data();
+    float pmax = 0.0f;
+    for (std::size_t i = 0; i < count; ++i) {
+      pw[i] = re[i] * re[i] + im[i] * im[i];
+      pmax = std::max(pmax, pw[i]);
+    }
+    // Noise power from the median of |z|^2 (exponential for Gaussian noise: median = P ln 2), taken
+    // over every 4th lag (neighbouring lags of a band-limited output are correlated anyway).
+    std::size_t m = 0;
+    for (std::size_t i = 0; i < count; i += kNoiseStride) sorted_[m++] = pw[i];
+    const auto mid = sorted_.begin() + static_cast<std::ptrdiff_t>(m / 2);
+    std::nth_element(sorted_.begin(), mid, sorted_.begin() + static_cast<std::ptrdiff_t>(m));
+    const double p_window = static_cast<double>(*mid) / std::numbers::ln2;
+    const double noise = std::max({tr.noise, p_window, std::numeric_limits<double>::min()});
+    const double thr = noise * threshold_;
+
+    bool crossed = false;
+    const std::size_t r0 = (c * templates_ + t) * ring_size_;
+    if (!tr.open && !(pmax > thr)) {
+      // Fast path (nearly every window): nothing to report. An event opening in a later window looks
+      // back at most one lag before its opening, so only the last lag goes into the ring.
+      if (count > 0) {
+        const std::uint64_t lag = base + count - 1;
+        const std::size_t r = r0 + (lag & ring_mask_);
+        ring_re_[r] = re[count - 1];
+        ring_im_[r] = im[count - 1];
+        ring_pow_[r] = pw[count - 1];
+        ring_ok_[r] = 0;
+      }
+      tr.next_lag = base + count;
+      tr.noise = tr.noise > 0.0 ? 0.5 * (tr.noise + p_window) : p_window;
+      return false;
+    }
+    // Energy of the input under each lag (running sum over the template length) for the correlation
+    // coefficient rho^2 = |z|^2 / (sum h^2 * sum x^2): ~1 for a matching chirp, ~2/L for noise, and
+    // small for the range sidelobes of a loud chirp and its cross-terms with other templates.
+    const float* xs = corr_.samples(c);
+    const std::size_t len = corr_.template_length(t);
+    const double eh = corr_.template_energy(t);
+    double ex = 0.0;
+    for (std::size_t j = 0; j < len; ++j) ex += static_cast<double>(xs[j]) * xs[j];
+    for (std::size_t i = 0; i < count; ++i) {
+      if (i > 0) {
+        const double a = xs[i - 1], b = xs[i + len - 1];
+        ex += b * b - a * a;
+      }
+      const std::uint64_t lag = base + i;
+      const std::size_t r = r0 + (lag & ring_mask_);
+      const double p = pw[i];
+      const bool ok = p > thr && p >= min_rho2_ * eh * std::max(ex, 0.0);
+      ring_re_[r] = re[i];
+      ring_im_[r] = im[i];
+      ring_pow_[r] = pw[i];
+      ring_ok_[r] = ok ? 1 : 0;
+      tr.next_lag = lag + 1;
+      if (tr.open && lag > tr.end) finalize(c, t, out);
+      if (p > thr) crossed = true;
+      if (ok) {
+        if (!tr.open && lag >= tr.allowed) {
+          tr.open = true;
+          tr.t0 = lag;
+          tr.best = p;
+          tr.best_lag = lag;
+          tr.thr_pow = thr;
+          tr.noise_at_open = noise;
+          tr.end = std::max(lag + window_frames_, lag + span_[t]);
+        }
+      }
+      if (ok && tr.open && p > tr.best) {
+        tr.best = p;
+        tr.best_lag = lag;
+        tr.end = std::max(tr.t0 + window_frames_, lag + span_[t]);
+      }
+    }
+    if (!crossed) tr.noise = tr.noise > 0.0 ? 0.5 * (tr.noise + p_window) : p_window;
+    return crossed;
+  }
+
+  /// Reports the earliest qualifying path of track (c, t)'s open event and closes it.
+  void finalize(std::uint32_t c, std::size_t t, EventSink& out) noexcept {
+    Track& tr = track(c, t);
+    tr.open = false;
+    const std::size_t r0 = (c * templates_ + t) * ring_size_;
+    auto pow_at = [&](std::uint64_t lag) -> double {
+      // Only lags already written and not yet overwritten; anything else counts as 0.
+      if (lag >= tr.next_lag || lag + ring_size_ < tr.next_lag) return 0.0;
+      return ring_pow_[r0 + (lag & ring_mask_)];
+    };
+    const double need = std::max(tr.thr_pow, ratio2_ * tr.best);
+    std::uint64_t k = tr.best_lag;
+    const std::uint64_t from = std::max(tr.t0, tr.best_lag > window_frames_ ? tr.best_lag - window_frames_ : 0);
+    for (std::uint64_t j = from; j <= tr.best_lag; ++j) {
+      const double p = pow_at(j);
+      if (p < need || !ring_ok_[r0 + (j & ring_mask_)]) continue;
+      const double before = j > 0 ? pow_at(j - 1) : 0.0;
+      const double after = j + 1 <= tr.end ? pow_at(j + 1) : 0.0;
+      if (p >= before && p >= after) {
+        k = j;
+        break;
+      }
+    }
+    const double pk = pow_at(k);
+    const double am = std::sqrt(k > 0 ? pow_at(k - 1) : 0.0), a0 = std::sqrt(pk), ap = std::sqrt(pow_at(k + 1));
+    const dsp::PeakFit fit = refine_ == Refine::Parabolic ? dsp::parabolic_peak(am, a0, ap) : dsp::gaussian_peak(am, a0, ap);
+    double lag = static_cast<double>(k) + fit.offset;
+    if (refine_ == Refine::Phase) {
+      const double coarse = fit.offset;
+      const std::int64_t step = coarse > 0.5 ? 1 : coarse < -0.5 ? -1 : 0;
+      const std::uint64_t k1 = static_cast<std::uint64_t>(static_cast<std::int64_t>(k) + step);
+      const std::size_t r = r0 + (k1 & ring_mask_);
+      const double d = dsp::phase_refine_near(ring_re_[r], ring_im_[r], corr_.centroid_omega(t),
+                                              coarse - static_cast<double>(step));
+      // The phase picks the fraction within the carrier cycle the envelope chose.
+      lag = static_cast<double>(k1) + d;
+    }
+    AudioDetection d;
+    d.device = device_;
+    d.detector = detector_;
+    d.stream = stream_;
+    d.channel = static_cast<std::uint16_t>(c);
+    d.template_index = static_cast<std::uint16_t>(t);
+    d.frame = static_cast<double>(origin_[c]) + lag;
+    d.sample_rate_hz = rate_;
+    const double snr_db = std::min(300.0, 10.0 * std::log10(std::max(fit.value * fit.value, pk) / tr.noise_at_open));
+    d.snr_db = static_cast<float>(snr_db);
+    d.confidence = static_cast<float>(std::clamp(1.0 - std::pow(10.0, -(snr_db - threshold_db_) / 10.0), 0.0, 1.0));
+    d.amplitude = static_cast<float>(std::max(fit.value, a0) / corr_.template_energy(t));
+    if (!out.emit(Event{d})) ++dropped_;
+    tr.allowed = k + spacing_frames_;
+  }
+
+  static constexpr std::size_t kNoiseStride = 4;
+
+  Track& track(std::uint32_t c, std::size_t t) noexcept { return tracks_[c * templates_ + t]; }
+
+  Logger* log_ = nullptr;
+  DeviceId device_;
+  NameTag detector_;
+  std::uint32_t stream_ = 0;
+  std::uint32_t channels_ = 0;
+  std::size_t templates_ = 0;
+  double rate_ = 44100.0;
+  double threshold_db_ = 15.0;
+  double threshold_ = 1.0;
+  double ratio2_ = 0.0;
+  double min_rho2_ = 0.0;
+  std::uint64_t window_frames_ = 0;
+  std::uint64_t spacing_frames_ = 0;
+  bool prescreen_ = true;
+  Refine refine_ = Refine::Phase;
+  dsp::Correlator corr_;
+  std::vector<std::uint64_t> guard_;
+  std::vector<std::uint64_t> span_;
+  std::size_t ring_size_ = 0, ring_mask_ = 0;
+  std::vector<Track> tracks_;
+  std::vector<float> ring_re_, ring_im_, ring_pow_;
+  std::vector<std::uint8_t> ring_ok_;  // the lag passes the correlation-coefficient test
+  std::vector<float> pow_, sorted_;
+  std::vector<dsp::BandPrescreen> screens_;
+  std::vector<std::uint64_t> origin_;
+  bool started_ = false;
+  std::uint64_t expected_frame_ = 0;
+  std::uint64_t dropped_ = 0;
+  std::uint64_t windows_ = 0;
+  std::uint64_t windows_skipped_ = 0;
+};
+
+const ParamSchema* schema_fn() { return &chirp_schema(); }
+Detector* create() { return new ChirpDetector(); }
+
+}  // namespace
+
+const ParamSchema& chirp_schema() {
+  static const ParamSchema schema = [] {
+    ParamSchema s = {
+        fspec("f0_hz", 2000.0, 1.0, 96000.0, "Hz", "Start frequency of the LFM template (TUM: 2 kHz; AMIL: 18 kHz)."),
+        fspec("f1_hz", 8000.0, 1.0, 96000.0, "Hz", "End frequency of the LFM template (TUM: 8 kHz; AMIL: 22 kHz)."),
+        fspec("duration_s", 0.040, 1e-4, 2.0, "s", "Duration of the LFM template (TUM: 40 ms; AMIL: 50 ms)."),
+        fspec("fade_s", 0.005, 0.0, 1.0, "s", "Raised-cosine fade in and out of the template (as the emitter's `fade`)."),
+    };
+    ParamSpec templates;
+    templates.key = "templates";
+    templates.type = ParamType::FloatList;
+    templates.default_value = std::vector<double>{};
+    templates.min = 0.0;
+    templates.max = 96000.0;
+    templates.unit = "";
+    templates.doc = "Several templates: flat list of f0_hz, f1_hz, duration_s, fade_s quadruples (template_index = "
+                    "position); when not empty it replaces f0_hz/f1_hz/duration_s/fade_s.";
+    s.push_back(std::move(templates));
+    s.push_back(fspec("threshold_db", 15.0, 3.0, 100.0, "dB",
+                      "Detection threshold: envelope peak power of the correlation over its noise power."));
+    s.push_back(fspec("min_coefficient", 0.2, 0.0, 1.0, "",
+                      "Minimum correlation coefficient |z| / (|h| |x|) over the template length (AMIL's r): "
+                      "rejects range sidelobes and cross-terms of loud chirps."));
+    s.push_back(fspec("earliest_ratio", 0.35, 0.05, 1.0, "",
+                      "Report the earliest envelope peak >= this fraction of the strongest one in the window "
+                      "(1 = the strongest only)."));
+    s.push_back(fspec("earliest_window_s", 0.010, 0.0, 1.0, "s",
+                      "How long after the first threshold crossing a stronger (later) path may still arrive."));
+    s.push_back(fspec("min_spacing_s", 0.1, 0.0, 60.0, "s",
+                      "Minimum time between two detections of one template on one channel (suppresses echoes)."));
+    ParamSpec pre;
+    pre.key = "prescreen";
+    pre.type = ParamType::Bool;
+    pre.default_value = true;
+    pre.doc = "Skip the correlation of windows without energy in the chirp's band (AMIL's FFT pre-screen).";
+    s.push_back(std::move(pre));
+    s.push_back(fspec("prescreen_db", 1.0, 0.0, 60.0, "dB",
+                      "Pre-screen: in-band over out-of-band power per bin, above its quiet baseline, needed to correlate."));
+    ParamSpec fft;
+    fft.key = "fft_size";
+    fft.type = ParamType::Int;
+    fft.default_value = std::int64_t{0};
+    fft.min = 0;
+    fft.max = 1 << 22;
+    fft.doc = "Overlap-save FFT size (a power of two larger than the longest template); 0 = 4x the longest template.";
+    s.push_back(std::move(fft));
+    ParamSpec refine;
+    refine.key = "refine";
+    refine.type = ParamType::Enum;
+    refine.default_value = std::string("phase");
+    refine.choices = {"phase", "gaussian", "parabolic"};
+    refine.doc = "Sub-sample timing: envelope fit then carrier phase (phase), or the envelope fit alone.";
+    s.push_back(std::move(refine));
+    return s;
+  }();
+  return schema;
+}
+
+const locus_plugin_descriptor* chirp_descriptor() {
+  static const locus_plugin_descriptor d{
+      LOCUS_PLUGIN_ABI_VERSION,
+      LOCUS_PLUGIN_DETECTOR,
+      "chirp",
+      "0.1.0",
+      "LFM chirp matched filter (overlap-save FFT, many templates), earliest path, sub-sample timing",
+      kInputAudio,
+      &schema_fn,
+      &create,
+      nullptr,
+  };
+  return &d;
+}
+
+}  // namespace locus

@@ -1,0 +1,741 @@
+// The `goldcode` detector: Montage's multi-user Gold-code receiver; algorithm in goldcode.hpp.
+#include "goldcode/goldcode.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <complex>
+#include <cstdint>
+#include <cstring>
+#include <memory>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "locus/dsp/fir.hpp"
+#include "locus/dsp/iir.hpp"
+#include "locus/dsp/signals.hpp"
+#include "locus/fftw_planner.hpp"
+
+namespace locus {
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+using cf = std::complex<float>;
+using cd = std::complex<double>;
+
+struct CodeTemplate {
+  std::vector<cf> spec_i, spec_q;   // rfft of the zero-padded, mean-removed baseband template (I, Q)
+  double energy = 0.0;              // Σ|T − T̄|²
+  std::vector<float> full_i, full_q;  // full-rate band-passed template, both quadratures
+  double full_energy = 0.0;         // Σ full_i² (≈ Σ full_q²)
+};
+
+struct Peak {
+  std::int64_t lag = 0;  // decimated index (absolute: frame = lag·D)
+  double rho = 0.0, rho_prev = -1.0, rho_next = -1.0;
+  bool have_next = false;
+};
+
+// Local maxima of one code's ρ inside one code length: a weak user's true peak can be lower than
+// a stronger user's cross-correlation sidelobe nearby, so several are kept and the joint refinement
+// decides.
+struct Candidate {
+  static constexpr int kMaxPeaks = 4;
+  bool open = false;
+  std::int64_t lag = 0;  // best peak so far (used by the other codes' joint refinements)
+  double rho = 0.0;
+  double noise = 0.0;    // mean ρ² of the code over the hop
+  std::int64_t first_lag = 0;
+  Peak peaks[kMaxPeaks];
+  int npeaks = 0;
+  bool in_run = false;   // inside a run of lags above the thresholds
+  Peak cur;              // the run's maximum
+  std::int64_t last_above = 0;
+};
+
+// One code taking part in a joint refinement.
+struct Member {
+  std::size_t code;
+  double frame;    // current arrival estimate
+  double ci, cq;   // in-phase / quadrature amplitude (y ≈ ci·g_i + cq·g_q at the integer delay)
+  double rho;
+  bool known;      // refined before (a final detection), ci/cq valid
+  double rho_fine = 0.0;  // Pearson of the residual with the template at the refined lag
+};
+
+struct Channel {
+  dsp::SosFilter bpf;
+  dsp::FirDecimator dec_i, dec_q;
+  cd osc{1.0, 0.0};
+  std::vector<float> ring;          // band-passed full-rate signal, indexed by frame & mask
+  std::vector<float> xi, xq;        // overlap-save buffers (Nfft decimated samples)
+  std::size_t fill = 0;
+  std::int64_t base = 0;            // decimated index of xi[0]
+  std::vector<Candidate> cand;      // per code
+  std::vector<std::int64_t> last_final;  // per code: lag of the last emitted detection
+  std::vector<double> last_rho;     // per code: ρ of the previous lag (across hops)
+  std::vector<double> fin_frame, fin_ci, fin_cq;  // per code: the last final detection's estimate
+  std::uint64_t end_frame = 0;      // one past the last frame written to `ring`
+  double level = 0.0;               // slow average of the window energy (guards near-silent windows)
+  bool started = false;
+  std::int64_t grid_start = 0;      // first decimated index with valid data since the last reset
+  std::uint64_t start_frame = 0;    // first frame with valid data (ring validity)
+};
+
+// Hilbert transform (FFT, zero-padded to twice the length so the circular wrap stays outside) [main].
+std::vector<float> hilbert(const std::vector<float>& x, FftPlanner& planner) {
+  const std::size_t n = std::bit_ceil(2 * x.size());
+  auto fft = planner.plan_real(n);
+  std::vector<float> buf(n, 0.0f), out(n);
+  std::copy(x.begin(), x.end(), buf.begin());
+  std::vector<cf> spec(n / 2 + 1);
+  fft->forward(buf.data(), spec.data());
+  spec[0] = 0.0f;
+  spec[n / 2] = 0.0f;
+  for (std::size_t k = 1; k < n / 2; ++k) spec[k] *= cf(0.0f, -1.0f);
+  fft->inverse(spec.data(), out.data());
+  std::vector<float> h(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) h[i] = out[i] / static_cast<float>(n);
+  return h;
+}
+
+class GoldcodeDetector final : public Detector {
+ public:
+  void configure(const StreamInfo& info, const Params& params, HostContext& ctx) override {
+    log_ = &ctx.log;
+    device_ = info.device;
+    detector_ = NameTag(ctx.instance);
+    stream_ = info.stream;
+    fs_ = info.sample_rate_hz;
+    if (!(fs_ > 0)) throw std::runtime_error("goldcode: sample rate must be > 0");
+    if (info.channels == 0) throw std::runtime_error("goldcode: the stream has no channels");
+    channels_ = info.channels;
+    max_block_ = info.max_block_frames;
+
+    carrier_hz_ = params.get_float("carrier_hz");
+    const int chip_samples = static_cast<int>(params.get_int("chip_samples"));
+    const int degree = static_cast<int>(params.get_int("degree"));
+    const double bw = params.get_float("band_width_hz");
+    const int order = static_cast<int>(params.get_int("filter_order"));
+    min_rho_ = params.get_float("min_pearson");
+    min_rho_coarse_ = params.get_float("min_pearson_coarse");
+    min_snr_db_ = params.get_float("min_snr_db");
+    const double amplitude = 1.0;
+    const double lo = carrier_hz_ - bw / 2.0, hi = carrier_hz_ + bw / 2.0;
+    if (!(lo > 0.0) || !(hi < fs_ / 2.0))
+      throw std::runtime_error("goldcode: carrier_hz ± band_width_hz/2 = [" + std::to_string(lo) + ", " +
+                               std::to_string(hi) + "] Hz must lie inside (0, fs/2 = " + std::to_string(fs_ / 2.0) + ") Hz");
+    std::int64_t dec = params.get_int("decimation");
+    if (dec == 0) dec = std::max<std::int64_t>(1, static_cast<std::int64_t>(std::floor(fs_ / (1.6 * bw))));
+    if (static_cast<double>(dec) * bw > fs_)
+      throw std::runtime_error("goldcode: decimation " + std::to_string(dec) + " leaves a baseband rate of " +
+                               std::to_string(fs_ / dec) + " Hz, below band_width_hz (" + std::to_string(bw) + " Hz)");
+    D_ = static_cast<std::size_t>(dec);
+
+    const std::vector<double>& codes = params.get_floats("codes");
+    if (codes.empty()) throw std::runtime_error("goldcode: `codes` lists no code index");
+    const int family = (1 << degree) + 1;
+    code_index_.clear();
+    for (double c : codes) {
+      if (c != std::floor(c) || c < 0 || c >= family)
+        throw std::runtime_error("goldcode: code index " + std::to_string(c) + " in `codes` is not an integer in 0.." +
+                                 std::to_string(family - 1) + " (degree " + std::to_string(degree) + ")");
+      code_index_.push_back(static_cast<int>(c));
+    }
+
+    sos_ = dsp::butter_bandpass(order, lo, hi, fs_);
+    // Anti-alias low-pass after mixing: pass the band half-width, stop before the first alias.
+    const double fs_d = fs_ / static_cast<double>(D_);
+    const double pass = bw / 2.0;
+    const double trans = std::max(100.0, std::min(fs_d - pass, fs_ / 2.0) - pass);
+    std::size_t taps = static_cast<std::size_t>(std::ceil(5.5 * fs_ / trans)) | 1u;  // Blackman: ~5.5/Δf
+    taps = std::clamp<std::size_t>(taps, 15, 1023);
+    lp_taps_ = dsp::fir_lowpass(taps, std::min(pass + trans / 2.0, 0.49 * fs_), fs_, {dsp::FirWindow::blackman});
+
+    // Templates through the same chain.
+    templates_.clear();
+    M_ = 0;
+    std::size_t full_len = 0;
+    std::vector<std::vector<cd>> base_t;
+    // One-off, configure-time transforms of ~16k points: planned with FFTW_ESTIMATE here rather than
+    // through ctx.fft, whose plans are meant for the streaming path (and may be slow reference
+    // implementations in tests).
+    FftwPlanner hilbert_fft({}, /*measure=*/false);
+    for (int ci : code_index_) {
+      dsp::SignalSpec spec;
+      spec.type = "gold";
+      spec.amplitude = amplitude;
+      spec.degree = degree;
+      spec.index = ci;
+      spec.carrier_hz = carrier_hz_;
+      spec.chip_samples = chip_samples;
+      std::vector<float> s;
+      try {
+        s = dsp::render_signal(spec, fs_);
+      } catch (const std::exception& e) {
+        throw std::runtime_error(std::string("goldcode: cannot build code ") + std::to_string(ci) + ": " + e.what());
+      }
+      code_len_ = s.size();
+      const std::size_t tail = taps + 8 * static_cast<std::size_t>(order) * 4;
+      s.resize(s.size() + tail, 0.0f);
+      full_len = s.size();
+      CodeTemplate t;
+      // Full-rate band-passed template, in-phase and quadrature (c·cos → c·sin is the same code on sin).
+      dsp::SosFilter f1(sos_);
+      t.full_i.resize(s.size());
+      f1.process(s.data(), t.full_i.data(), s.size());
+      t.full_q = hilbert(t.full_i, hilbert_fft);
+      for (float v : t.full_i) t.full_energy += static_cast<double>(v) * v;
+      // Baseband: mix the band-passed template, low-pass, decimate from frame 0.
+      dsp::FirDecimator di(lp_taps_, D_), dq(lp_taps_, D_);
+      std::vector<float> mi(s.size()), mq(s.size());
+      for (std::size_t n = 0; n < s.size(); ++n) {
+        const double ph = 2.0 * kPi * std::fmod(carrier_hz_ * static_cast<double>(n) / fs_, 1.0);
+        mi[n] = static_cast<float>(t.full_i[n] * std::cos(ph));
+        mq[n] = static_cast<float>(-t.full_i[n] * std::sin(ph));
+      }
+      std::vector<float> oi(s.size() / D_ + 2), oq(s.size() / D_ + 2);
+      const std::size_t k = di.process(mi.data(), mi.size(), oi.data());
+      dq.process(mq.data(), mq.size(), oq.data());
+      std::vector<cd> bt(k);
+      for (std::size_t i = 0; i < k; ++i) bt[i] = cd(oi[i], oq[i]);
+      M_ = std::max(M_, k);
+      base_t.push_back(std::move(bt));
+      templates_.push_back(std::move(t));
+    }
+    full_len_ = full_len;
+    nfft_ = std::bit_ceil(2 * M_);
+    hop_ = nfft_ - M_ + 1;
+    auto fft = ctx.fft.plan_real(nfft_);
+    fft_ = std::move(fft);
+    std::vector<float> buf(nfft_);
+    for (std::size_t u = 0; u < templates_.size(); ++u) {
+      std::vector<cd>& bt = base_t[u];
+      bt.resize(M_, cd(0.0, 0.0));
+      cd mean(0.0, 0.0);
+      for (const cd& v : bt) mean += v;
+      mean /= static_cast<double>(M_);
+      CodeTemplate& t = templates_[u];
+      t.energy = 0.0;
+      for (cd& v : bt) {
+        v -= mean;
+        t.energy += std::norm(v);
+      }
+      t.spec_i.resize(nfft_ / 2 + 1);
+      t.spec_q.resize(nfft_ / 2 + 1);
+      std::fill(buf.begin(), buf.end(), 0.0f);
+      for (std::size_t i = 0; i < M_; ++i) buf[i] = static_cast<float>(bt[i].real());
+      fft_->forward(buf.data(), t.spec_i.data());
+      std::fill(buf.begin(), buf.end(), 0.0f);
+      for (std::size_t i = 0; i < M_; ++i) buf[i] = static_cast<float>(bt[i].imag());
+      fft_->forward(buf.data(), t.spec_q.data());
+    }
+
+    // Working memory.
+    refine_half_ = static_cast<std::int64_t>(D_ / 2 + 3);
+    const std::size_t ring_need = (2 * nfft_ + M_) * D_ + max_block_ + full_len_ + 4 * static_cast<std::size_t>(refine_half_);
+    ring_size_ = std::bit_ceil(ring_need);
+    ring_mask_ = ring_size_ - 1;
+    chans_.assign(channels_, Channel{});
+    for (Channel& ch : chans_) {
+      ch.bpf = dsp::SosFilter(sos_);
+      ch.dec_i = dsp::FirDecimator(lp_taps_, D_);
+      ch.dec_q = dsp::FirDecimator(lp_taps_, D_);
+      ch.ring.assign(ring_size_, 0.0f);
+      ch.xi.assign(nfft_, 0.0f);
+      ch.xq.assign(nfft_, 0.0f);
+      ch.cand.assign(templates_.size(), Candidate{});
+      ch.last_final.assign(templates_.size(), INT64_MIN / 2);
+      ch.last_rho.assign(templates_.size(), -1.0);
+      ch.fin_frame.assign(templates_.size(), -1e300);
+      ch.fin_ci.assign(templates_.size(), 0.0);
+      ch.fin_cq.assign(templates_.size(), 0.0);
+    }
+    bp_.assign(max_block_, 0.0f);
+    mi_.assign(max_block_, 0.0f);
+    mq_.assign(max_block_, 0.0f);
+    di_.assign(max_block_ / D_ + 2, 0.0f);
+    dq_.assign(max_block_ / D_ + 2, 0.0f);
+    spec_xi_.assign(nfft_ / 2 + 1, cf{});
+    spec_xq_.assign(nfft_ / 2 + 1, cf{});
+    spec_w_.assign(nfft_ / 2 + 1, cf{});
+    re_.assign(nfft_, 0.0f);
+    im_.assign(nfft_, 0.0f);
+    rho_.assign(hop_ * templates_.size(), 0.0);
+    noise_.assign(templates_.size(), 0.0);
+    members_.reserve(2 * templates_.size() + 1);  // u + per other code: last detection and open candidate
+    resid_.assign(full_len_ + 2 * static_cast<std::size_t>(refine_half_) + 2, 0.0f);
+    pre_e_.assign(nfft_ + 1, 0.0);
+    pre_si_.assign(nfft_ + 1, 0.0);
+    pre_sq_.assign(nfft_ + 1, 0.0);
+    rot_ = std::exp(cd(0.0, -2.0 * kPi * carrier_hz_ / fs_));
+    expected_frame_ = 0;
+    have_expected_ = false;
+    dropped_ = 0;
+  }
+
+  void process_audio(const AudioBlock& block, EventSink& out) noexcept override {
+    const bool gap = block.lost_before > 0 || (have_expected_ && block.first_frame != expected_frame_);
+    const std::uint32_t nch = std::min(block.channels, channels_);
+    for (std::uint32_t c = 0; c < channels_; ++c) {
+      Channel& ch = chans_[c];
+      if (gap && ch.started) {
+        flush_candidates(c, out);
+        ch.started = false;
+      }
+    }
+    std::uint32_t done = 0;
+    while (done < block.frames) {
+      const std::uint32_t n = std::min<std::uint32_t>(block.frames - done, static_cast<std::uint32_t>(max_block_));
+      for (std::uint32_t c = 0; c < nch; ++c) run(c, block.channel_data[c] + done, n, block.first_frame + done, out);
+      done += n;
+    }
+    expected_frame_ = block.first_frame + block.frames;
+    have_expected_ = true;
+  }
+
+  void finish(EventSink& out) override {
+    // Push silence through so that the last codes' correlation windows complete.
+    if (have_expected_) {
+      std::vector<float> zeros(max_block_, 0.0f);
+      const std::size_t total = (nfft_ + M_) * D_ + full_len_;
+      std::uint64_t frame = expected_frame_;
+      for (std::size_t done = 0; done < total; done += max_block_) {
+        for (std::uint32_t c = 0; c < channels_; ++c)
+          if (chans_[c].started) run(c, zeros.data(), static_cast<std::uint32_t>(max_block_), frame, out);
+        frame += max_block_;
+      }
+    }
+    for (std::uint32_t c = 0; c < channels_; ++c) flush_candidates(c, out);
+    if (dropped_ > 0 && log_)
+      log_->warn("goldcode: " + std::to_string(dropped_) + " detections dropped (event queue full)");
+  }
+
+ private:
+  void restart(Channel& ch, std::uint64_t frame) noexcept {
+    ch.bpf.reset();
+    ch.dec_i.reset();
+    ch.dec_q.reset();
+    // Decimated sample m is frame m·D: the first output comes on the next frame ≡ 0 (mod D).
+    const std::size_t to_grid = (D_ - frame % D_) % D_;
+    ch.dec_i.set_next_output(to_grid);
+    ch.dec_q.set_next_output(to_grid);
+    // The absolute carrier phase is irrelevant (every statistic is a magnitude); it only has to be
+    // continuous from here on, which the rotator guarantees.
+    ch.osc = cd(1.0, 0.0);
+    std::fill(ch.xi.begin(), ch.xi.end(), 0.0f);
+    std::fill(ch.xq.begin(), ch.xq.end(), 0.0f);
+    ch.fill = 0;
+    ch.base = static_cast<std::int64_t>((frame + to_grid) / D_);
+    ch.grid_start = ch.base;
+    ch.start_frame = frame;
+    for (Candidate& k : ch.cand) k = Candidate{};
+    for (auto& l : ch.last_final) l = INT64_MIN / 2;
+    for (auto& r : ch.last_rho) r = -1.0;
+    for (auto& r : ch.fin_frame) r = -1e300;
+    ch.end_frame = frame;
+    ch.level = 0.0;
+    ch.started = true;
+  }
+
+  void run(std::uint32_t c, const float* x, std::uint32_t n, std::uint64_t first_frame, EventSink& out) noexcept {
+    Channel& ch = chans_[c];
+    if (!ch.started) restart(ch, first_frame);
+    ch.bpf.process(x, bp_.data(), n);
+    cd osc = ch.osc;
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const float y = bp_[i];
+      ch.ring[(first_frame + i) & ring_mask_] = y;
+      mi_[i] = static_cast<float>(y * osc.real());
+      mq_[i] = static_cast<float>(y * osc.imag());
+      osc *= rot_;
+    }
+    ch.osc = osc / std::abs(osc);
+    ch.end_frame = first_frame + n;
+    const std::size_t k = ch.dec_i.process(mi_.data(), n, di_.data());
+    ch.dec_q.process(mq_.data(), n, dq_.data());
+    for (std::size_t i = 0; i < k; ++i) {
+      ch.xi[ch.fill] = di_[i];
+      ch.xq[ch.fill] = dq_[i];
+      if (++ch.fill == nfft_) hop(c, out);
+    }
+  }
+
+  // One overlap-save hop: correlation lags base .. base+hop−1 for every code.
+  void hop(std::uint32_t c, EventSink& out) noexcept {
+    Channel& ch = chans_[c];
+    fft_->forward(ch.xi.data(), spec_xi_.data());
+    fft_->forward(ch.xq.data(), spec_xq_.data());
+    // Exact window sums from prefix sums.
+    pre_e_[0] = pre_si_[0] = pre_sq_[0] = 0.0;
+    for (std::size_t i = 0; i < nfft_; ++i) {
+      const double a = ch.xi[i], b = ch.xq[i];
+      pre_e_[i + 1] = pre_e_[i] + a * a + b * b;
+      pre_si_[i + 1] = pre_si_[i] + a;
+      pre_sq_[i + 1] = pre_sq_[i] + b;
+    }
+    const double inv_n = 1.0 / static_cast<double>(nfft_);
+    const double m = static_cast<double>(M_);
+    // Windows far below the usual level (digital silence, filter ring-down at the end of a stream)
+    // make ρ meaningless: 0/0. They must hold at least 1e-3 of the running window energy.
+    const double min_e = std::max(1e-20, 1e-3 * ch.level);
+    const double hop_mean_e = (pre_e_[hop_ + M_ - 1] - pre_e_[0]) / static_cast<double>(hop_ + M_ - 1) * m;
+    ch.level = ch.level == 0.0 ? hop_mean_e : 0.8 * ch.level + 0.2 * hop_mean_e;
+    for (std::size_t u = 0; u < templates_.size(); ++u) {
+      const CodeTemplate& t = templates_[u];
+      const std::size_t nb = nfft_ / 2 + 1;
+      // Re = IFFT(XI·conj(A) + XQ·conj(B)), Im = IFFT(XQ·conj(A) − XI·conj(B)).
+      for (std::size_t b = 0; b < nb; ++b)
+        spec_w_[b] = spec_xi_[b] * std::conj(t.spec_i[b]) + spec_xq_[b] * std::conj(t.spec_q[b]);
+      fft_->inverse(spec_w_.data(), re_.data());
+      for (std::size_t b = 0; b < nb; ++b)
+        spec_w_[b] = spec_xq_[b] * std::conj(t.spec_i[b]) - spec_xi_[b] * std::conj(t.spec_q[b]);
+      fft_->inverse(spec_w_.data(), im_.data());
+      double sum_r2 = 0.0;
+      for (std::size_t d = 0; d < hop_; ++d) {
+        const double cr = re_[d] * inv_n, ci = im_[d] * inv_n;
+        const double si = pre_si_[d + M_] - pre_si_[d], sq = pre_sq_[d + M_] - pre_sq_[d];
+        const double e = pre_e_[d + M_] - pre_e_[d] - (si * si + sq * sq) / m;
+        const double den = e * t.energy;
+        const double r = e > min_e && den > 1e-30 ? std::sqrt((cr * cr + ci * ci) / den) : 0.0;
+        double* rho = &rho_[u * hop_];
+        rho[d] = std::min(r, 1.0);
+        sum_r2 += rho[d] * rho[d];
+      }
+      noise_[u] = std::max(sum_r2 / static_cast<double>(hop_), 1e-12);
+    }
+    // Lags in time order, all codes at each lag: when one code's candidate is final, every other
+    // code's peaks up to that lag are known (needed by the joint refinement).
+    for (std::size_t d = 0; d < hop_; ++d) {
+      const std::int64_t lag = ch.base + static_cast<std::int64_t>(d);
+      for (std::size_t u = 0; u < templates_.size(); ++u) {
+        const double* rho = &rho_[u * hop_];
+        step_lag(c, u, lag, rho[d], d > 0 ? rho[d - 1] : ch.last_rho[u], noise_[u], out);
+      }
+    }
+    for (std::size_t u = 0; u < templates_.size(); ++u) ch.last_rho[u] = rho_[u * hop_ + hop_ - 1];
+    std::memmove(ch.xi.data(), ch.xi.data() + hop_, (nfft_ - hop_) * sizeof(float));
+    std::memmove(ch.xq.data(), ch.xq.data() + hop_, (nfft_ - hop_) * sizeof(float));
+    ch.fill = nfft_ - hop_;
+    ch.base += static_cast<std::int64_t>(hop_);
+  }
+
+  void step_lag(std::uint32_t c, std::size_t u, std::int64_t lag, double rho, double rho_prev, double noise,
+                EventSink& out) noexcept {
+    Channel& ch = chans_[c];
+    Candidate& k = ch.cand[u];
+    const std::int64_t len = static_cast<std::int64_t>(M_);
+    if (k.in_run && !k.cur.have_next && lag == k.cur.lag + 1) {
+      k.cur.rho_next = rho;
+      k.cur.have_next = true;
+    }
+    for (int i = 0; i < k.npeaks; ++i)
+      if (!k.peaks[i].have_next && lag == k.peaks[i].lag + 1) {
+        k.peaks[i].rho_next = rho;
+        k.peaks[i].have_next = true;
+      }
+    // Final one code length after the first peak, plus the lags the full-rate refinement reaches.
+    if (k.open && lag > k.first_lag + len + 3 + (2 * refine_half_) / static_cast<std::int64_t>(D_)) finalize(c, u, out);
+    if (lag < ch.grid_start) return;  // window reaches back before the data since the last restart
+    const double snr_db = 10.0 * std::log10(rho * rho / noise + 1e-30);
+    if (rho >= min_rho_coarse_ && snr_db >= min_snr_db_ && lag > ch.last_final[u] + len / 2) {
+      if (!k.open) {
+        k.open = true;
+        k.first_lag = lag;
+        k.npeaks = 0;
+        k.rho = 0.0;
+      }
+      if (!k.in_run || rho > k.cur.rho) k.cur = Peak{lag, rho, rho_prev, -1.0, false};
+      k.in_run = true;
+      k.last_above = lag;
+      if (rho > k.rho) {
+        k.rho = rho;
+        k.lag = lag;
+        k.noise = noise;
+      }
+    } else if (k.in_run && lag > k.last_above + 2) {
+      push_peak(k);
+    }
+  }
+
+  static void push_peak(Candidate& k) noexcept {
+    k.in_run = false;
+    if (k.npeaks < Candidate::kMaxPeaks) {
+      k.peaks[k.npeaks++] = k.cur;
+      return;
+    }
+    int weakest = 0;
+    for (int i = 1; i < k.npeaks; ++i)
+      if (k.peaks[i].rho < k.peaks[weakest].rho) weakest = i;
+    if (k.cur.rho > k.peaks[weakest].rho) k.peaks[weakest] = k.cur;
+  }
+
+  void flush_candidates(std::uint32_t c, EventSink& out) noexcept {
+    for (std::size_t u = 0; u < templates_.size(); ++u)
+      if (chans_[c].cand[u].open) finalize(c, u, out);
+  }
+
+  // Two dot products with 8 float lanes each (vectorisable without -ffast-math); the sums of
+  // 8 partial sums are exact enough for a peak search (relative error ~1e-6).
+  static void dot2(const float* y, const float* a, const float* b, std::size_t n, double& ra, double& rb) noexcept {
+    float sa[8] = {}, sb[8] = {};
+    std::size_t j = 0;
+    for (; j + 8 <= n; j += 8)
+      for (int t = 0; t < 8; ++t) {
+        sa[t] += y[j + t] * a[j + t];
+        sb[t] += y[j + t] * b[j + t];
+      }
+    double da = 0.0, db = 0.0;
+    for (int t = 0; t < 8; ++t) {
+      da += sa[t];
+      db += sb[t];
+    }
+    for (; j < n; ++j) {
+      da += static_cast<double>(y[j]) * a[j];
+      db += static_cast<double>(y[j]) * b[j];
+    }
+    ra = da;
+    rb = db;
+  }
+
+  // Re-estimates one member's arrival (±half frames around its estimate) and in-phase/quadrature
+  // amplitudes on the signal minus every other member's current reconstruction.
+  void refine_member(Channel& ch, Member& mb, std::int64_t half) noexcept {
+    const CodeTemplate& t = templates_[mb.code];
+    const std::int64_t centre = static_cast<std::int64_t>(std::llround(mb.frame));
+    const std::int64_t lo = centre - half;
+    const std::size_t span = full_len_ + 2 * static_cast<std::size_t>(half) + 1;
+    for (std::size_t i = 0; i < span; ++i) resid_[i] = ch.ring[static_cast<std::uint64_t>(lo + static_cast<std::int64_t>(i)) & ring_mask_];
+    for (const Member& o : members_) {
+      if (&o == &mb || (o.ci == 0.0 && o.cq == 0.0)) continue;
+      const CodeTemplate& to = templates_[o.code];
+      const std::int64_t oc = static_cast<std::int64_t>(std::llround(o.frame));
+      // resid[i] covers frame lo+i; o's template sample j sits at frame oc+j.
+      const std::int64_t j0 = std::max<std::int64_t>(0, lo - oc);
+      const std::int64_t j1 = std::min<std::int64_t>(static_cast<std::int64_t>(full_len_), lo + static_cast<std::int64_t>(span) - oc);
+      for (std::int64_t j = j0; j < j1; ++j)
+        resid_[static_cast<std::size_t>(oc + j - lo)] -= static_cast<float>(o.ci * to.full_i[j] + o.cq * to.full_q[j]);
+    }
+    double best = -1.0, e_prev = -1.0, e_bp = -1.0, e_bn = -1.0, bi = 0.0, bq = 0.0;
+    std::int64_t best_l = 0;
+    bool next_pending = false;
+    for (std::int64_t l = 0; l <= 2 * half; ++l) {
+      double ai = 0.0, aq = 0.0;
+      dot2(resid_.data() + l, t.full_i.data(), t.full_q.data(), full_len_, ai, aq);
+      const double e = std::sqrt(ai * ai + aq * aq);
+      if (next_pending) {
+        e_bn = e;
+        next_pending = false;
+      }
+      if (e > best) {
+        best = e;
+        best_l = l;
+        bi = ai;
+        bq = aq;
+        e_bp = e_prev;
+        next_pending = l < 2 * half;
+        e_bn = -1.0;
+      }
+      e_prev = e;
+    }
+    double off = 0.0;
+    if (e_bp >= 0.0 && e_bn >= 0.0) {
+      const double den = e_bp - 2.0 * best + e_bn;
+      if (den < 0.0) off = std::clamp(0.5 * (e_bp - e_bn) / den, -0.5, 0.5);
+    }
+    mb.frame = static_cast<double>(lo + best_l) + off;
+    double e_res = 0.0;
+    for (std::size_t j = 0; j < full_len_; ++j) {
+      const double v = resid_[static_cast<std::size_t>(best_l) + j];
+      e_res += v * v;
+    }
+    mb.rho_fine = e_res > 0.0 && t.full_energy > 0.0 ? best / std::sqrt(e_res * t.full_energy) : 0.0;
+    mb.ci = t.full_energy > 0.0 ? bi / t.full_energy : 0.0;
+    mb.cq = t.full_energy > 0.0 ? bq / t.full_energy : 0.0;
+  }
+
+  // Joint refinement of code u's peak `k`: arrival frame, amplitude and the refined Pearson
+  // coefficient (1 when the audio around it is not available any more: the coarse value stands).
+  void evaluate_peak(Channel& ch, std::size_t u, const Peak& k, double& frame, double& amp, double& rho_fine,
+                     double& ci, double& cq) noexcept {
+    // Coarse: parabola through ρ at lag−1, lag, lag+1 (decimated).
+    double off = 0.0;
+    if (k.rho_prev >= 0.0 && k.have_next) {
+      const double den = k.rho_prev - 2.0 * k.rho + k.rho_next;
+      if (den < 0.0) off = std::clamp(0.5 * (k.rho_prev - k.rho_next) / den, -0.5, 0.5);
+    }
+    const double coarse = (static_cast<double>(k.lag) + off) * static_cast<double>(D_);
+    // Fine: joint refinement of this code and every other code whose emission overlaps it
+    // (successive interference cancellation over the full-rate analytic matched filter).
+    frame = coarse;
+    amp = 0.0;
+    rho_fine = k.rho;
+    ci = cq = 0.0;
+    members_.clear();
+    members_.push_back(Member{u, coarse, 0.0, 0.0, k.rho, false});
+    const double overlap = static_cast<double>(full_len_);
+    for (std::size_t v = 0; v < templates_.size(); ++v) {
+      if (v == u) continue;
+      const Candidate& kv = ch.cand[v];
+      const bool fin_near = std::abs(ch.fin_frame[v] - coarse) < overlap;
+      if (fin_near) members_.push_back(Member{v, ch.fin_frame[v], ch.fin_ci[v], ch.fin_cq[v], 1.0, true});
+      const double open_frame = static_cast<double>(kv.lag) * static_cast<double>(D_);
+      if (kv.open && std::abs(open_frame - coarse) < overlap &&
+          (!fin_near || std::abs(open_frame - ch.fin_frame[v]) > overlap / 2))
+        members_.push_back(Member{v, open_frame, 0.0, 0.0, kv.rho, false});
+    }
+    // Strongest first (known ones are already refined: they only get subtracted in round 0).
+    std::sort(members_.begin(), members_.end(), [](const Member& a, const Member& b) { return a.rho > b.rho; });
+    const std::int64_t oldest = std::max<std::int64_t>(static_cast<std::int64_t>(ch.start_frame),
+                                                       static_cast<std::int64_t>(ch.end_frame) - static_cast<std::int64_t>(ring_size_));
+    // Members whose audio is not (or no longer) in the ring cannot take part.
+    auto available = [&](const Member& mb) {
+      const std::int64_t c0 = static_cast<std::int64_t>(std::llround(mb.frame));
+      return c0 - 2 * refine_half_ >= oldest &&
+             c0 + 2 * refine_half_ + static_cast<std::int64_t>(full_len_) <= static_cast<std::int64_t>(ch.end_frame);
+    };
+    members_.erase(std::remove_if(members_.begin(), members_.end(), [&](const Member& mb) { return !available(mb); }),
+                   members_.end());
+    const bool self_ok = std::any_of(members_.begin(), members_.end(), [&](const Member& mb) { return mb.code == u; });
+    rho_fine = k.rho;  // without the refinement the coarse coefficient is all there is
+    if (self_ok) {
+      const int rounds = members_.size() > 1 ? 2 : 1;
+      for (int round = 0; round < rounds; ++round) {
+        for (Member& mb : members_) {
+          if (mb.known && round == 0) continue;
+          const std::int64_t half = mb.ci == 0.0 && mb.cq == 0.0 ? refine_half_ : 1;
+          refine_member(ch, mb, half);
+        }
+      }
+      for (const Member& mb : members_)
+        if (mb.code == u) {
+          frame = mb.frame;
+          amp = std::hypot(mb.ci, mb.cq);
+          rho_fine = mb.rho_fine;
+          ci = mb.ci;
+          cq = mb.cq;
+        }
+    }
+  }
+
+  void finalize(std::uint32_t c, std::size_t u, EventSink& out) noexcept {
+    Channel& ch = chans_[c];
+    Candidate& k = ch.cand[u];
+    if (k.in_run) push_peak(k);
+    k.open = false;
+    double frame = 0.0, amp = 0.0, rho_fine = -1.0, ci = 0.0, cq = 0.0;
+    std::int64_t lag = k.lag;
+    double rho_c = k.rho;
+    for (int i = 0; i < k.npeaks; ++i) {
+      double f, a, r, pi, pq;
+      evaluate_peak(ch, u, k.peaks[i], f, a, r, pi, pq);
+      if (r > rho_fine) {
+        frame = f;
+        amp = a;
+        rho_fine = r;
+        ci = pi;
+        cq = pq;
+        lag = k.peaks[i].lag;
+        rho_c = k.peaks[i].rho;
+      }
+    }
+    k.npeaks = 0;
+    // A peak that was only the other users' cross-correlation vanishes once they are subtracted.
+    if (rho_fine < min_rho_) {
+      ++rejected_;  // the last accepted detection of u stays the reference for the others
+      return;
+    }
+    ch.last_final[u] = lag;
+    ch.fin_frame[u] = frame;
+    ch.fin_ci[u] = ci;
+    ch.fin_cq[u] = cq;
+    AudioDetection d;
+    d.device = device_;
+    d.detector = detector_;
+    d.stream = stream_;
+    d.channel = static_cast<std::uint16_t>(c);
+    d.template_index = static_cast<std::uint16_t>(u);
+    d.frame = frame;
+    d.sample_rate_hz = fs_;
+    d.snr_db = static_cast<float>(10.0 * std::log10(rho_c * rho_c / k.noise));
+    d.confidence = static_cast<float>(std::clamp(rho_fine, 0.0, 1.0));
+    d.amplitude = static_cast<float>(amp);
+    if (!out.emit(Event{d})) ++dropped_;
+  }
+
+  Logger* log_ = nullptr;
+  DeviceId device_;
+  NameTag detector_;
+  std::uint32_t stream_ = 0;
+  std::uint32_t channels_ = 0;
+  std::size_t max_block_ = 1024;
+  double fs_ = 44100.0;
+  double carrier_hz_ = 19000.0;
+  double min_rho_ = 0.2;
+  double min_rho_coarse_ = 0.15;
+  double min_snr_db_ = 10.0;
+  std::size_t D_ = 1;
+  std::vector<int> code_index_;
+  std::vector<dsp::Biquad> sos_;
+  std::vector<double> lp_taps_;
+  std::vector<CodeTemplate> templates_;
+  std::size_t code_len_ = 0, full_len_ = 0, M_ = 0, nfft_ = 0, hop_ = 0;
+  std::int64_t refine_half_ = 4;
+  std::size_t ring_size_ = 0, ring_mask_ = 0;
+  std::unique_ptr<RealFft> fft_;
+  std::vector<Channel> chans_;
+  std::vector<float> bp_, mi_, mq_, di_, dq_, re_, im_;
+  std::vector<cf> spec_xi_, spec_xq_, spec_w_;
+  std::vector<double> rho_, noise_, pre_e_, pre_si_, pre_sq_;
+  std::vector<Member> members_;
+  std::vector<float> resid_;
+  cd rot_{1.0, 0.0};
+  std::uint64_t expected_frame_ = 0;
+  bool have_expected_ = false;
+  std::uint64_t dropped_ = 0;
+  std::uint64_t rejected_ = 0;  // candidates rejected by the refined (interference-free) Pearson test
+};
+
+const ParamSchema* schema_fn() { return &goldcode_schema(); }
+Detector* create() { return new GoldcodeDetector(); }
+
+}  // namespace
+
+const ParamSchema& goldcode_schema() {
+  static const ParamSchema schema = {
+      float_param("carrier_hz", 19000.0, 100.0, 100000.0, "Hz", "Carrier of the coded tones (Montage: 19 kHz)."),
+      int_param("chip_samples", std::int64_t{40}, 1, 100000, "", "Samples per chip at the stream rate (Montage: 40)."),
+      int_param("degree", std::int64_t{7}, 5, 11, "", "Gold code degree r: length 2^r - 1 (format pairs: 5,6,7,9,10,11)."),
+      float_list_param("codes", std::vector<double>{0.0, 1.0, 2.0, 3.0}, 0.0, 2049.0, "",
+                       "Family indices of the users' codes; template_index of a detection is the position here.", 1, 64),
+      float_param("band_width_hz", 4800.0, 50.0, 40000.0, "Hz", "Width of the band-pass around the carrier (Montage: 1000)."),
+      int_param("filter_order", std::int64_t{4}, 1, 12, "", "Butterworth prototype order of the band-pass (2x poles)."),
+      int_param("decimation", std::int64_t{0}, 0, 64, "", "Baseband decimation factor; 0 = floor(fs / (1.6 band_width_hz))."),
+      float_param("min_pearson_coarse", 0.15, 0.01, 1.0, "",
+                  "Pearson coefficient (baseband, all users present) that opens a candidate."),
+      float_param("min_snr_db", 6.0, 0.0, 60.0, "dB", "Candidate peak rho^2 over the mean rho^2 of the code in the hop."),
+      float_param("min_pearson", 0.2, 0.01, 1.0, "",
+                  "Pearson coefficient of the full-rate refinement, other users subtracted, a detection must reach."),
+  };
+  return schema;
+}
+
+const locus_plugin_descriptor* goldcode_descriptor() {
+  static const locus_plugin_descriptor d{
+      LOCUS_PLUGIN_ABI_VERSION,
+      LOCUS_PLUGIN_DETECTOR,
+      "goldcode",
+      "0.1.0",
+      "Montage multi-user Gold-coded tone receiver: band-pass, I/Q demodulation, Pearson correlation per code",
+      kInputAudio,
+      &schema_fn,
+      &create,
+      nullptr,
+  };
+  return &d;
+}
+
+}  // namespace locus

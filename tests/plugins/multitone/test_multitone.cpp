@@ -1,0 +1,195 @@
+// multitone detector: beacon identity from the MAC bits, arrival accuracy at stated SNRs, decay
+// features monotone and longer with more reverberation, decay_times on exact envelopes.
+//
+// SNR here: beep power (a²/2 · (1/K) for K equal tones of total amplitude a: each tone has amplitude
+// a/K, the beep's mean power is K·(a/K)²/2 = a²/(2K)) over the variance of white noise over the full
+// band 0..fs/2.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "locus/dsp/signals.hpp"
+#include "locus/fftw_planner.hpp"
+#include "multitone/multitone.hpp"
+#include "support/test_host.hpp"
+
+namespace locus {
+namespace {
+
+constexpr double kFs = 44100.0;
+
+struct Fixture {
+  test::TestHost host;
+  FftwPlanner fftw{{}, false};
+};
+
+std::unique_ptr<Detector> make(Fixture& f, const Params& p) {
+  std::unique_ptr<Detector> d(multitone_descriptor()->create_detector());
+  StreamInfo info;
+  info.device = DeviceId("U");
+  info.channels = 1;
+  info.sample_rate_hz = kFs;
+  info.max_block_frames = 1024;
+  HostContext ctx{f.host.log, f.host.clock, f.fftw, f.host.link, "beep", "U"};
+  d->configure(info, p, ctx);
+  return d;
+}
+
+std::vector<double> tones_of(std::uint32_t mask) {
+  std::vector<double> t;
+  for (int k = 0; k < 10; ++k)
+    if (mask & (1u << k)) t.push_back(18000.0 + 250.0 * k);
+  return t;
+}
+
+// MAC C4:2C:03:3A:2C:A1 → low ten bits 0b0010100001 → tones f0, f5, f7 (the paper's example).
+std::uint32_t mac_bits(const std::array<std::uint8_t, 6>& mac) { return ((mac[4] << 8) | mac[5]) & 0x3FFu; }
+
+void add_beep(std::vector<float>& x, std::uint32_t mask, double delay, double a) {
+  dsp::SignalSpec s;
+  s.type = "multitone";
+  s.tones_hz = tones_of(mask);
+  s.duration_s = 0.05;
+  s.fade_s = 0.005;
+  s.amplitude = a;
+  dsp::SignalEvaluator ev(s, kFs);
+  const auto first = static_cast<std::size_t>(std::floor(delay));
+  for (std::size_t n = first; n < std::min(x.size(), first + static_cast<std::size_t>(0.05 * kFs) + 2); ++n)
+    x[n] += static_cast<float>(ev.value((static_cast<double>(n) - delay) / kFs));
+}
+
+struct Out {
+  std::vector<AudioDetection> det;
+  std::vector<DecayFeatures> feat;
+};
+
+Out run(Detector& d, const std::vector<float>& x) {
+  test::CollectingSink sink;
+  test::feed_planar(d, {x}, 1024, sink);
+  d.finish(sink);
+  Out o;
+  for (const Event& e : sink.events) {
+    if (const auto* a = std::get_if<AudioDetection>(&e)) o.det.push_back(*a);
+    if (const auto* b = std::get_if<DecayFeatures>(&e)) o.feat.push_back(*b);
+  }
+  return o;
+}
+
+TEST(Multitone, MacBitsOfThePaperExample) {
+  EXPECT_EQ(mac_bits({0xC4, 0x2C, 0x03, 0x3A, 0x2C, 0xA1}), 0b0010100001u);
+}
+
+TEST(Multitone, IdentityAndArrivalAtStatedSnrs) {
+  Fixture f;
+  const Params p = Params::defaults(multitone_schema());
+  std::mt19937 rng(42);
+  std::uniform_int_distribution<int> id(1, 1023);
+  for (double snr_db : {10.0, 0.0, -5.0}) {
+    int ok = 0, n = 0;
+    double max_err = 0.0, sum2 = 0.0;
+    for (int trial = 0; trial < 16; ++trial) {
+      std::uint32_t mask = trial == 0 ? mac_bits({0xC4, 0x2C, 0x03, 0x3A, 0x2C, 0xA1}) : static_cast<std::uint32_t>(id(rng));
+      const int k = std::popcount(mask);
+      const double a = 0.5;
+      const double sigma = std::sqrt(a * a / (2.0 * k) / std::pow(10.0, snr_db / 10.0));
+      std::vector<float> x(static_cast<std::size_t>(0.6 * kFs));
+      std::normal_distribution<float> g(0.0f, static_cast<float>(sigma));
+      for (float& v : x) v = g(rng);
+      const double truth = 0.2 * kFs + trial * 13.37;
+      add_beep(x, mask, truth, a);
+      auto d = make(f, p);
+      const Out o = run(*d, x);
+      ++n;
+      ASSERT_EQ(o.det.size(), 1u) << "snr " << snr_db << " trial " << trial;
+      ASSERT_EQ(o.feat.size(), 1u);
+      EXPECT_EQ(o.det[0].template_index, mask) << "snr " << snr_db << " trial " << trial;
+      const double err = o.det[0].frame - truth;
+      max_err = std::max(max_err, std::abs(err));
+      sum2 += err * err;
+      if (o.det[0].template_index == mask && std::abs(err) <= (k >= 2 ? 2.0 : 30.0)) ++ok;
+      EXPECT_EQ(o.feat[0].frame, o.det[0].frame);
+    }
+    std::printf("multitone SNR %+.0f dB: %d/%d identity+arrival ok, max |err| %.2f, rms %.2f frames\n", snr_db, ok,
+                n, max_err, std::sqrt(sum2 / n));
+    EXPECT_EQ(ok, n) << "snr " << snr_db;
+  }
+}
+
+TEST(Multitone, NoiseOnlyIsQuiet) {
+  Fixture f;
+  auto d = make(f, Params::defaults(multitone_schema()));
+  std::mt19937 rng(3);
+  std::normal_distribution<float> g(0.0f, 0.05f);
+  std::vector<float> x(static_cast<std::size_t>(5.0 * kFs));
+  for (float& v : x) v = g(rng);
+  EXPECT_TRUE(run(*d, x).det.empty());
+}
+
+// Beep + a diffuse reverberant tail: the beep convolved with exponentially decaying noise of
+// reverberation time rt60 (energy −60 dB after rt60).
+std::vector<float> reverberant(double rt60, std::uint32_t mask, double at, std::mt19937& rng) {
+  std::vector<float> dry(static_cast<std::size_t>(0.7 * kFs), 0.0f);
+  add_beep(dry, mask, at, 0.5);
+  const std::size_t ir_len = static_cast<std::size_t>(std::min(0.25, rt60) * kFs);
+  std::vector<float> ir(ir_len);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  const double decay = 3.0 * std::log(10.0) / (rt60 * kFs);  // amplitude e-folding per sample
+  for (std::size_t i = 0; i < ir_len; ++i) ir[i] = static_cast<float>(0.02 * g(rng) * std::exp(-decay * i));
+  std::vector<float> y(dry);
+  const std::size_t start = static_cast<std::size_t>(at), end = start + static_cast<std::size_t>(0.05 * kFs) + 2;
+  for (std::size_t n = start; n < end; ++n)
+    for (std::size_t i = 0; i < ir_len && n + i + 40 < y.size(); ++i) y[n + i + 40] += dry[n] * ir[i];
+  std::normal_distribution<float> noise(0.0f, 1e-4f);
+  for (float& v : y) v += noise(rng);
+  return y;
+}
+
+TEST(Multitone, DecayFeaturesMonotoneAndLongerWithMoreReverberation) {
+  Fixture f;
+  Params p = Params::defaults(multitone_schema());
+  p.set("tail_s", 0.3);
+  std::mt19937 rng(5);
+  std::vector<std::array<float, 6>> feats;
+  for (double rt60 : {0.1, 0.3, 0.6}) {
+    auto d = make(f, p);
+    const Out o = run(*d, reverberant(rt60, 0b0010100001, 0.2 * kFs, rng));
+    ASSERT_EQ(o.feat.size(), 1u) << rt60;
+    const auto& t = o.feat[0].decay_s;
+    std::printf("rt60 %.1f s: T5..T30 =", rt60);
+    for (float v : t) std::printf(" %.4f", v);
+    std::printf(" s, margin %.1f dB\n", o.feat[0].noise_margin_db);
+    for (int k = 0; k < 6; ++k) ASSERT_TRUE(std::isfinite(t[k])) << "rt60 " << rt60 << " T" << 5 * (k + 1);
+    for (int k = 1; k < 6; ++k) EXPECT_GE(t[k], t[k - 1]);
+    feats.push_back(t);
+  }
+  for (std::size_t r = 1; r < feats.size(); ++r)
+    for (int k = 2; k < 6; ++k) EXPECT_GT(feats[r][k], feats[r - 1][k]) << "rt60 step " << r << " T" << 5 * (k + 1);
+}
+
+TEST(DecayTimes, ExactOnAnExponentialEnvelope) {
+  // Energy flat at 1 for 100 samples, then −60 dB per 1000 samples: x dB is reached x/60·1000 after.
+  std::vector<double> e(3000);
+  for (std::size_t i = 0; i < e.size(); ++i) e[i] = i < 100 ? 1.0 : std::pow(10.0, -6.0 * (i - 100) / 1000.0);
+  const auto t = decay_times(e, 0, 100, 100, 1000.0);
+  for (int k = 0; k < 6; ++k) EXPECT_NEAR(t[k], 5.0 * (k + 1) / 60.0, 1.5e-3) << k;
+  std::vector<double> shallow(200, 1.0);
+  for (std::size_t i = 100; i < 200; ++i) shallow[i] = 0.5;  // only −3 dB: nothing reached
+  for (float v : decay_times(shallow, 0, 100, 100, 1000.0)) EXPECT_TRUE(std::isnan(v));
+}
+
+TEST(Multitone, RejectsBadParameters) {
+  Fixture f;
+  Params p = Params::defaults(multitone_schema());
+  p.set("tones_hz", std::vector<double>{18000.0, 17000.0});
+  try {
+    make(f, p);
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("strictly increasing"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace locus

@@ -1,0 +1,40 @@
+// Scene replay through the real pipeline (`locus replay`).
+//
+// The scene declares the devices; the config says what runs on them. For every scene device that
+// records any stream (audio, imu, ble, sync) one node (one Pipeline) is built:
+//   - its device entry is the config's `devices:` entry with the same id, else the template entry
+//     `id: "*"`, else an empty one (no detectors);
+//   - the streams the scene declares for the device are read by the scene sources (scene_audio,
+//     scene_imu, scene_ble, scene_sync) at the chosen speed; they replace any source the config names
+//     for those streams (the scene wins); streams the scene does not declare keep the config's source
+//     (hardware in the loop);
+//   - detectors whose inputs the node has no stream for are left out (logged);
+//   - every localizer of the config runs on every node, with HostContext::device = the device id;
+//   - plugins get the device's geometry from scene.yaml (HostContext::geometry).
+// All nodes share one InProcessLink (as boards share an MQTT broker) and one JSON-lines writer.
+//
+// Shutdown, once every stream ended: (a) every node drains its sources through its detectors and
+// delivers its bus; the link is flushed and buses re-delivered until quiet; (b) node by node, in scene
+// order, the localizers finish, each followed by the same settling; then the output is flushed.
+#pragma once
+
+#include <optional>
+#include <string>
+
+namespace locus::app {
+
+struct ReplayOptions {
+  std::string scene_dir;
+  std::string config_path;
+  std::string speed = "max";                 ///< max | realtime
+  std::optional<std::string> output;         ///< JSON lines path ("-" = stdout); default: config output.path
+  std::optional<std::string> events;         ///< comma-separated event type names; default: estimate
+  std::optional<std::string> log_level;
+};
+
+/// Runs the replay. Exit status: 0 success; 2 a bad scene, config or option (nothing ran, every error
+/// printed); 1 a stream failed mid-way or the replay was interrupted (after flushing everything that
+/// was accepted before).
+int run_replay(const ReplayOptions& options);
+
+}  // namespace locus::app

@@ -1,0 +1,153 @@
+// Family `tum`: the experiments of TUM (paper 000, Sec. VIII).
+//
+// Paper setup reproduced: four devices with two microphones and one speaker each (two Nexus 5, an
+// HTC M9, a Note 10.1 tablet) in a 5.3 × 6 × 3.5 m lab; three fixed devices N1..N3 with attitudes
+// (−1,1,0), (1,1,0), (1,−1,0) and a working device M with (−1,−1,0) (read as the heading of the top
+// of the screen, devices lying screen up); every device emits its own linear chirp of 40 ms in the
+// 2-8 kHz band (up or down, different rates), in turn, rounds at 3 Hz (the paper's ranging rate),
+// after a loose time synchronisation (±10 ms per device) plus a random speaker latency. IMU
+// (accelerometer, gyroscope, magnetometer) on every device: TUM takes attitudes from it.
+//   track=static  : M stands at a random test location near its corner (the paper used 25 locations)
+//   track=ellipse : M rides a toy train on a 31 cm × 58 cm elliptical track, 5.9 s per round, its
+//                   heading following the track.
+// Deviation: Fig. 12's exact coordinates are not in the text; the devices stand at the corners of a
+// 1.6 m square around the room centre, on tripods at 0.8-1.2 m.
+#include <cmath>
+
+#include "locus/sim/families.hpp"
+#include "locus/sim/motion/imu.hpp"
+
+namespace locus::sim {
+
+namespace {
+
+struct Hardware {
+  const char* model;
+  std::vector<Eigen::Vector3d> mics;
+  Eigen::Vector3d speaker;
+};
+
+dsp::SignalSpec tum_chirp(double f0, double f1) {
+  dsp::SignalSpec c;
+  c.type = "lfm";
+  c.f0_hz = f0;
+  c.f1_hz = f1;
+  c.duration_s = 0.040;
+  c.fade_s = 0.004;
+  c.amplitude = 1.0;
+  return c;
+}
+
+}  // namespace
+
+Simulation make_tum(const FamilyOptions& opts) {
+  const DifficultyProfile prof = difficulty_profile(opts.difficulty);
+  const std::string track = opts.get_choice("track", "static", {"static", "ellipse"});
+  const double round_s = opts.get_double("round_s", 1.0 / 3.0, 0.2, 10.0);
+  opts.finish("tum");
+
+  Simulation sim;
+  sim.name = std::string("tum-") + track;
+  sim.family = "tum";
+  sim.seed = opts.seed;
+  sim.duration_s = opts.duration_s.value_or(30.0);
+  sim.acoustics.room = Room{};
+  sim.acoustics.room->size_m = {5.3, 6.0, 3.5};
+  apply_profile(prof, sim.acoustics);
+  sim.magnetic_field_world_ut = Eigen::Vector3d(12.1, 14.6, -44.0);
+
+  Rng layout = Rng::derive(opts.seed, "tum/layout");
+  Rng clocks = Rng::derive(opts.seed, "tum/clocks");
+  Rng latency = Rng::derive(opts.seed, "tum/latency");
+
+  const std::vector<Hardware> hw = {
+      {"nexus5", {{0.0, 0.066, 0.0}, {0.0, -0.066, 0.0}}, {0.02, -0.068, 0.0}},
+      {"nexus5", {{0.0, 0.066, 0.0}, {0.0, -0.066, 0.0}}, {0.02, -0.068, 0.0}},
+      {"htc_m9", {{0.01, 0.070, 0.0}, {-0.01, -0.070, 0.0}}, {0.0, 0.072, 0.0}},
+      {"note10", {{-0.12, 0.08, 0.0}, {0.12, 0.08, 0.0}}, {0.0, -0.085, 0.0}},
+  };
+  const std::vector<dsp::SignalSpec> chirps = {tum_chirp(2000, 8000), tum_chirp(8000, 2000), tum_chirp(2500, 7500),
+                                               tum_chirp(7500, 2500)};
+  const Eigen::Vector2d centre(2.65, 3.0);
+  struct Fixed {
+    const char* id;
+    Eigen::Vector2d corner, heading;
+    double height;
+  };
+  const std::vector<Fixed> place = {
+      {"N1", {0.8, -0.8}, {-1, 1}, 0.8},
+      {"N2", {-0.8, -0.8}, {1, 1}, 1.0},
+      {"N3", {-0.8, 0.8}, {1, -1}, 1.2},
+      {"M", {0.8, 0.8}, {-1, -1}, 1.0},
+  };
+
+  for (std::size_t i = 0; i < place.size(); ++i) {
+    const Fixed& f = place[i];
+    DeviceModel d;
+    d.id = f.id;
+    d.mics_body_m = hw[i].mics;
+    d.speaker_body_m = hw[i].speaker;
+    d.emits = {chirps[i]};
+    d.clock = draw_clock(prof, clocks);
+    const Eigen::Vector2d xy = centre + f.corner;
+    if (std::string(f.id) != "M") {
+      d.trajectory = std::make_shared<StaticTrajectory>(Eigen::Vector3d(xy.x(), xy.y(), f.height), flat_attitude(f.heading));
+    } else if (track == "static") {
+      const Eigen::Vector2d test = xy + Eigen::Vector2d(layout.uniform(-0.6, 0.6), layout.uniform(-0.6, 0.6));
+      d.trajectory = std::make_shared<StaticTrajectory>(Eigen::Vector3d(test.x(), test.y(), f.height + layout.uniform(-0.2, 0.2)),
+                                                        flat_attitude(f.heading));
+    } else {
+      // the train: semi-axes 0.155 m (x) and 0.29 m (y), 5.9 s per round, heading along the tangent
+      const double a = 0.155, b = 0.29, period = 5.9, phase0 = layout.uniform(0.0, 2.0 * M_PI);
+      const Eigen::Vector3d c3(xy.x(), xy.y(), f.height);
+      d.trajectory = std::make_shared<FunctionTrajectory>(
+          [=](double t) {
+            const double ph = phase0 + 2.0 * M_PI * t / period;
+            const Eigen::Vector2d tangent(-a * std::sin(ph), b * std::cos(ph));
+            return Pose{c3 + Eigen::Vector3d(a * std::cos(ph), b * std::sin(ph), 0.0), flat_attitude(tangent)};
+          },
+          2.0 * M_PI * b / period);
+    }
+    motion::PhoneImuConfig imu;
+    imu.rate_hz = 100.0;
+    imu.magnetometer = true;  // TUM takes attitudes from accelerometer + gyroscope + magnetometer (A3)
+    imu.accel_noise_density *= prof.imu_noise_scale;
+    imu.gyro_noise_density *= prof.imu_noise_scale;
+    imu.accel_bias_std_mps2 *= prof.imu_noise_scale;
+    imu.gyro_bias_std_radps *= prof.imu_noise_scale;
+    imu.mag_noise_ut *= prof.imu_noise_scale;
+    d.imu = std::make_shared<motion::PhoneImu>(imu);
+    d.speaker_response = {250.0, 12000.0, 2};
+    d.mic_response = {60.0, 16000.0, 2};
+    sim.devices.push_back(d);
+  }
+  // NLOS: obstructed pairs (the paper's plank / people walking by)
+  for (std::size_t i = 0; i < place.size(); ++i)
+    for (std::size_t j = i + 1; j < place.size(); ++j)
+      if (layout.bernoulli(prof.obstruction_probability))
+        sim.acoustics.obstructions.push_back(Obstruction{place[i].id, place[j].id, prof.obstruction_db});
+
+  // tone exchange: rounds every round_s, device i in slot i; loose sync error fixed per device
+  const double t0 = prof.offset_s_max + 0.5;
+  const double slot = round_s / static_cast<double>(place.size());
+  std::vector<double> sync_error(place.size());
+  for (auto& e : sync_error) e = latency.uniform(-0.010, 0.010);
+  for (int r = 0;; ++r) {
+    const double start = t0 + r * round_s;
+    if (start + round_s + prof.latency.max_s + 0.2 > sim.duration_s) break;
+    for (std::size_t i = 0; i < place.size(); ++i) {
+      Emission e;
+      e.source_id = place[i].id;
+      e.signal_index = 0;
+      e.t_command_true_s = start + static_cast<double>(i) * slot + sync_error[i];
+      e.latency_s = prof.latency.draw(latency);
+      sim.emissions.push_back(e);
+    }
+  }
+  if (sim.emissions.empty())
+    throw std::invalid_argument("duration " + scene::format_double(sim.duration_s) + " s leaves no room for a tone round");
+  sim.environment_yaml = "track: " + track + ", round_s: " + scene::format_double(round_s);
+  return sim;
+}
+
+}  // namespace locus::sim
