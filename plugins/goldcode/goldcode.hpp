@@ -18,7 +18,7 @@
 //      true peak can be lower than a strong user's cross-correlation sidelobe);
 //   6. joint refinement at the full rate (successive interference cancellation): for the peak and
 //      every other code whose emission overlaps it (open candidates and recent detections),
-//      strongest first, 3 rounds: subtract the others' current reconstructions, search the envelope
+//      strongest first, 2 rounds: subtract the others' current reconstructions, search the envelope
 //      of the analytic matched filter (band-passed template + its Hilbert transform) over
 //      ±(D/2 + 3) frames, parabolic interpolation, least-squares in-phase/quadrature amplitudes.
 //      The refined Pearson coefficient of the residual with the template picks among the kept

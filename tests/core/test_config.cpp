@@ -89,7 +89,7 @@ class ConfigTest : public ::testing::Test {
   } while (0)
 
 const char* const kEventNames =
-    "audio_detection, imu_sample, ble_advertisement, radio_sync, step, attitude, estimate";
+    "audio_detection, imu_sample, ble_advertisement, radio_sync, step, attitude, estimate, decay_features";
 
 // ------------------------------------------------------------------------------ error classes
 

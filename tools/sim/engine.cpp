@@ -281,11 +281,12 @@ class DeviceRenderer {
   void path_windows(const Emission& e, const Source& s, std::vector<PathWindow>& out) const {
     out.clear();
     const double te0 = e.t_start_true_s();
-    const double dur = evaluators_[source_index(e.source_id)][static_cast<std::size_t>(e.signal_index)]->duration_s();
+    // the evaluator's support: [0, duration) for closed forms, a few samples wider for interpolated ones
+    const dsp::SignalEvaluator& ev = *evaluators_[source_index(e.source_id)][static_cast<std::size_t>(e.signal_index)];
     for (std::size_t m = 0; m < channels_; ++m) {
       for (std::size_t p = 0; p < images_.size(); ++p) {
-        const double ta = arrival(s, images_[p], m, te0);
-        const double tb = arrival(s, images_[p], m, te0 + dur);
+        const double ta = arrival(s, images_[p], m, te0 + ev.begin_s());
+        const double tb = arrival(s, images_[p], m, te0 + ev.end_s());
         const double la = dev_.clock.local_from_true(std::min(ta, tb)) * fs_;
         const double lb = dev_.clock.local_from_true(std::max(ta, tb)) * fs_;
         PathWindow w{m, p, static_cast<std::int64_t>(std::floor(la)) - 2, static_cast<std::int64_t>(std::ceil(lb)) + 2};
@@ -375,9 +376,9 @@ class DeviceRenderer {
       }
     }
     constexpr double kGridStep_s = 1e-4, kGridPad_s = 0.005;
-    const double grid_t0 = te0 - kGridPad_s;
+    const double grid_t0 = te0 + ev.begin_s() - kGridPad_s;
     if (!src_static) {
-      const auto n = static_cast<std::size_t>(std::ceil((ev.duration_s() + 2 * kGridPad_s) / kGridStep_s)) + 2;
+      const auto n = static_cast<std::size_t>(std::ceil((ev.end_s() - ev.begin_s() + 2 * kGridPad_s) / kGridStep_s)) + 2;
       spk_grid_.resize(n);
       for (std::size_t j = 0; j < n; ++j)
         spk_grid_[j] = s.trajectory->pose(grid_t0 + static_cast<double>(j) * kGridStep_s).to_world(s.speaker_body);

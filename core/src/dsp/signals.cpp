@@ -1,6 +1,7 @@
 // Generators of the scene format's signals (see signals.hpp for the definitions and conventions).
 #include "locus/dsp/signals.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
@@ -129,31 +130,72 @@ SignalEvaluator::SignalEvaluator(const SignalSpec& spec, double sample_rate_hz) 
     duration_s_ = spec.duration_s;
   } else if (spec.type == "gold") {
     require(spec.chip_samples >= 1, "gold: chip_samples must be >= 1 (got " + std::to_string(spec.chip_samples) + ")");
-    const std::vector<std::uint8_t> chips = gold_chips(spec);
-    chip_sign_.reserve(chips.size());
-    for (std::uint8_t c : chips) chip_sign_.push_back(c ? -1.0f : 1.0f);
-    duration_s_ = static_cast<double>(chips.size()) * spec.chip_samples / fs_;
+    samples_ = render_signal(spec, fs_);
+    duration_s_ = static_cast<double>(samples_.size()) / fs_;
+    begin_s_ = -kInterpolationHalfWidth / fs_;
+    end_s_ = duration_s_ + kInterpolationHalfWidth / fs_;
+    // Kaiser window (beta 8.6: about -90 dB sidelobes), tabulated over |u| in [0, 1].
+    constexpr int kTable = 4096;
+    constexpr double kBeta = 8.6;
+    auto bessel_i0 = [](double x) {
+      double sum = 1.0, term = 1.0;
+      for (int k = 1; k < 60; ++k) {
+        term *= (x / (2.0 * k)) * (x / (2.0 * k));
+        sum += term;
+        if (term < 1e-17 * sum) break;
+      }
+      return sum;
+    };
+    window_table_.resize(kTable + 2);
+    for (int i = 0; i <= kTable + 1; ++i) {
+      const double u = std::min(1.0, static_cast<double>(i) / kTable);
+      window_table_[static_cast<std::size_t>(i)] = bessel_i0(kBeta * std::sqrt(1.0 - u * u)) / bessel_i0(kBeta);
+    }
+    return;
   } else {
     throw std::invalid_argument("signal type '" + spec.type + "' is not an acoustic signal this build can render "
                                 "(expected lfm, gold or multitone)");
   }
+  end_s_ = duration_s_;
+}
+
+double SignalEvaluator::interpolate(double t_s) const noexcept {
+  const double x = t_s * fs_;
+  const double nearest = std::round(x);
+  const double r = x - nearest;  // in [−0.5, 0.5]: sin(π·r) stays accurate when x is next to a sample
+  const auto base = static_cast<std::int64_t>(nearest);
+  const auto count = static_cast<std::int64_t>(samples_.size());
+  if (r == 0.0) return (base >= 0 && base < count) ? samples_[static_cast<std::size_t>(base)] : 0.0;
+  // sin(π(x − k)) = (−1)^(base−k)·sin(π·r)
+  const double sin_pf = std::sin(std::numbers::pi * r);
+  const double table_scale = static_cast<double>(window_table_.size() - 2) / kInterpolationHalfWidth;
+  double sum = 0.0;
+  const std::int64_t k_lo = std::max<std::int64_t>(base - kInterpolationHalfWidth + 1, 0);
+  const std::int64_t k_hi = std::min<std::int64_t>(base + kInterpolationHalfWidth - 1, count - 1);
+  for (std::int64_t k = k_lo; k <= k_hi; ++k) {
+    const double d = x - static_cast<double>(k);  // in (−H, H)
+    const double sign = ((base - k) & 1) ? -1.0 : 1.0;
+    const double u = std::abs(d) * table_scale;
+    const auto j = static_cast<std::size_t>(u);
+    const double w = window_table_[j] + (u - static_cast<double>(j)) * (window_table_[j + 1] - window_table_[j]);
+    sum += samples_[static_cast<std::size_t>(k)] * sign * sin_pf / (std::numbers::pi * d) * w;
+  }
+  return sum;
 }
 
 double SignalEvaluator::value(double t_s) const noexcept {
-  if (!(t_s >= 0.0) || !(t_s < duration_s_)) return 0.0;
+  if (!(t_s >= begin_s_) || !(t_s < end_s_)) return 0.0;
   if (spec_.type == "lfm") return lfm_value(spec_, t_s);
   if (spec_.type == "multitone") return multitone_value(spec_, t_s);
-  // gold: chip k covers samples [k·chip_samples, (k+1)·chip_samples)
-  const auto chip = static_cast<std::size_t>(std::floor(t_s * fs_ / spec_.chip_samples));
-  if (chip >= chip_sign_.size()) return 0.0;
-  return spec_.amplitude * chip_sign_[chip] * std::cos(kTwoPi * spec_.carrier_hz * t_s);
+  return interpolate(t_s);
 }
 
 std::vector<float> render_signal(const SignalSpec& spec, double sample_rate_hz) {
-  const SignalEvaluator eval(spec, sample_rate_hz);
-  const std::size_t n = signal_length(spec, sample_rate_hz);
-  std::vector<float> out(n);
   if (spec.type == "gold") {
+    require(std::isfinite(sample_rate_hz) && sample_rate_hz > 0.0, "sample rate must be > 0 Hz");
+    require(spec.chip_samples >= 1, "gold: chip_samples must be >= 1 (got " + std::to_string(spec.chip_samples) + ")");
+    const std::size_t n = signal_length(spec, sample_rate_hz);
+    std::vector<float> out(n);
     // Exactly the format's sample formula: a·c[n / chip_samples]·cos(2π·carrier·n/fs).
     const std::vector<std::uint8_t> chips = gold_chips(spec);
     const auto cs = static_cast<std::size_t>(spec.chip_samples);
@@ -164,6 +206,9 @@ std::vector<float> render_signal(const SignalSpec& spec, double sample_rate_hz) 
     }
     return out;
   }
+  const SignalEvaluator eval(spec, sample_rate_hz);
+  const std::size_t n = signal_length(spec, sample_rate_hz);
+  std::vector<float> out(n);
   for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<float>(eval.value(static_cast<double>(i) / sample_rate_hz));
   return out;
 }

@@ -82,7 +82,7 @@ TEST(Signals, GoldSamplesFollowTheFormula) {
   for (std::size_t n = 0; n < x.size(); ++n) {
     const double expect = 0.5 * (chips[n / 7] ? -1.0 : 1.0) * std::cos(2 * std::numbers::pi * 19000 * n / fs);
     ASSERT_NEAR(x[n], expect, 1e-6);
-    ASSERT_NEAR(eval.value(n / fs), expect, 1e-9);
+    ASSERT_NEAR(eval.value(n / fs), expect, 1e-6);  // samples are stored as float
   }
 }
 
@@ -132,4 +132,39 @@ TEST(Signals, BadSpecsAreRefusedWithTheReason) {
   m.type = "multitone";
   m.duration_s = 0.1;
   EXPECT_THROW(render_signal(m, 44100), std::invalid_argument);
+}
+
+// Gold codes are defined at the sample instants only; between them the evaluator is the DAC's
+// band-limited interpolation: exact at n/fs, and a fractional delay moves the whole waveform (chip
+// edges included) by the fraction, which a band-limited reference confirms.
+TEST(Signals, GoldEvaluatorIsBandLimitedInterpolation) {
+  SignalSpec s;
+  s.type = "gold";
+  s.degree = 6;
+  s.index = 5;
+  s.carrier_hz = 6000;  // well inside the band, so a short windowed sinc is accurate
+  s.chip_samples = 8;
+  const double fs = 44100;
+  const auto x = render_signal(s, fs);
+  const SignalEvaluator eval(s, fs);
+  for (std::size_t n = 0; n < x.size(); n += 7) ASSERT_NEAR(eval.value(n / fs), x[n], 1e-6);
+  EXPECT_LT(eval.begin_s(), 0.0);
+  EXPECT_GT(eval.end_s(), eval.duration_s());
+  EXPECT_EQ(eval.value(eval.end_s() + 1e-6), 0.0);
+  // Half-sample shifted copy: compare against a long (±400 samples) plain sinc interpolation.
+  double err = 0, ref_power = 0;
+  for (std::size_t n = 100; n + 100 < x.size(); ++n) {
+    const double t = (n + 0.5) / fs;
+    double ref = 0;
+    for (long k = static_cast<long>(n) - 400; k <= static_cast<long>(n) + 400; ++k) {
+      if (k < 0 || k >= static_cast<long>(x.size())) continue;
+      const double d = (n + 0.5) - k;
+      ref += x[static_cast<std::size_t>(k)] * std::sin(std::numbers::pi * d) / (std::numbers::pi * d);
+    }
+    err += (eval.value(t) - ref) * (eval.value(t) - ref);
+    ref_power += ref * ref;
+  }
+  // The residual is the windowed kernel's transition band at Nyquist (rectangular chips put energy
+  // there); -37 dB measured.
+  EXPECT_LT(10 * std::log10(err / ref_power), -33.0);
 }

@@ -29,13 +29,6 @@ const nlohmann::ordered_json& row(const GroupResult& g, const std::string& targe
   return none;
 }
 
-std::string fmt(double v) {
-  std::ostringstream os;
-  os.precision(17);
-  os << v;
-  return os.str();
-}
-
 TEST(EvalStats, PercentilesInterpolateLinearly) {
   std::vector<double> v;
   for (int i = 10; i >= 1; --i) v.push_back(i / 10.0);

@@ -73,22 +73,37 @@ std::size_t signal_length(const SignalSpec& spec, double sample_rate_hz);
 /// non-acoustic or unknown type, or a malformed spec.
 std::vector<float> render_signal(const SignalSpec& spec, double sample_rate_hz);
 
-/// Continuous-time evaluator: the value of the emitted sound `t_s` seconds after its start (0 outside
-/// [0, duration)). lfm and multitone are exact closed forms; gold holds each chip for
-/// chip_samples/fs seconds and evaluates the carrier at t. Construct once (it precomputes the chips),
-/// then call value() at any t.
+/// Continuous-time evaluator: the value of the emitted sound `t_s` seconds after its start, for
+/// rendering it at fractional (and time-varying) delays. lfm and multitone are their exact closed
+/// forms (0 outside [0, duration)). gold is defined only at the sample instants n/fs, so between them
+/// it is what a sound card's DAC plays: the band-limited (Kaiser-windowed sinc, ±32 samples)
+/// interpolation of the samples, exact at every n/fs; its support extends 32 samples beyond both ends
+/// ([begin_s(), end_s())). Holding each chip instead would quantise the chip edges to whole samples
+/// of the receiver and bias every arrival by up to a sample. Construct once (it precomputes what it
+/// needs), then call value() at any t.
 class SignalEvaluator {
  public:
   SignalEvaluator(const SignalSpec& spec, double sample_rate_hz);
   double value(double t_s) const noexcept;
+  /// Nominal length of the signal (lfm/multitone: duration; gold: chips·chip_samples/fs).
   double duration_s() const noexcept { return duration_s_; }
+  /// Where value() may be non-zero: [begin_s(), end_s()), begin_s() <= 0 <= duration_s() <= end_s().
+  double begin_s() const noexcept { return begin_s_; }
+  double end_s() const noexcept { return end_s_; }
   const SignalSpec& spec() const noexcept { return spec_; }
 
+  static constexpr int kInterpolationHalfWidth = 32;  ///< gold: samples each side of t
+
  private:
+  double interpolate(double t_s) const noexcept;
+
   SignalSpec spec_;
   double fs_;
   double duration_s_ = 0.0;
-  std::vector<float> chip_sign_;  // gold: ±1 per chip
+  double begin_s_ = 0.0;
+  double end_s_ = 0.0;
+  std::vector<float> samples_;         // gold: the sampled signal (render_signal)
+  std::vector<double> window_table_;   // Kaiser window over |u| in [0, 1]
 };
 
 }  // namespace locus::dsp
