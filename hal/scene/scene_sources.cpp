@@ -10,16 +10,6 @@ namespace locus::hal::scene_replay {
 
 namespace {
 
-ParamSpec spec(std::string key, ParamType type, ParamValue def, std::string doc, std::vector<std::string> choices = {}) {
-  ParamSpec s;
-  s.key = std::move(key);
-  s.type = type;
-  s.default_value = std::move(def);
-  s.doc = std::move(doc);
-  s.choices = std::move(choices);
-  return s;
-}
-
 using Clock = std::chrono::steady_clock;
 
 Clock::time_point at(Clock::time_point t0, double seconds) {
@@ -39,12 +29,11 @@ bool wait_until(Clock::time_point due, const std::atomic<bool>& stop) {
 
 const ParamSchema& scene_source_schema() {
   static const ParamSchema schema{
-      spec("scene", ParamType::String, std::monostate{}, "Scene directory (holding scene.yaml)."),
-      spec("device", ParamType::String, std::monostate{}, "Device id in scene.yaml whose stream is replayed."),
-      spec("speed", ParamType::Enum, std::string("max"),
-           "max: as fast as the pipeline consumes, lossless and exactly time-ordered; realtime: paced by the "
-           "host clock like live hardware (a slow consumer loses data, counted).",
-           {"max", "realtime"}),
+      string_param("scene", std::monostate{}, "Scene directory (holding scene.yaml)."),
+      string_param("device", std::monostate{}, "Device id in scene.yaml whose stream is replayed."),
+      enum_param("speed", std::string("max"), {"max", "realtime"},
+                 "max: as fast as the pipeline consumes, lossless and exactly time-ordered; realtime: paced by "
+                 "the host clock like live hardware (a slow consumer loses data, counted)."),
   };
   return schema;
 }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <complex>
 #include <cstdint>
 #include <limits>
 #include <numbers>
@@ -96,6 +97,7 @@ class ChirpDetector final : public Detector {
     opt.channels = channels_;
     opt.fft_size = static_cast<std::size_t>(fft_size);
     opt.analytic = true;
+    opt.baseband = true;
     try {
       corr_.configure(templates, ctx.fft, opt);
     } catch (const std::invalid_argument& e) {
@@ -241,6 +243,13 @@ class ChirpDetector final : public Detector {
         screen.note_quiet(true);
         continue;
       }
+      // Quiet windows (nearly all) are screened on the decimated complex-baseband correlation; the
+      // full-rate correlation and scan run only where something may cross the threshold.
+      if (count == corr_.hop() && !track(c, t).open && corr_.baseband_decimation(t) > 1 &&
+          quiet_baseband(c, t, base, count)) {
+        if (prescreen_) screen.note_quiet(false);
+        continue;
+      }
       corr_.correlate(t);
       const bool crossed = scan(c, t, base, count, out);
       if (prescreen_ && !crossed) screen.note_quiet(false);
@@ -259,6 +268,44 @@ class ChirpDetector final : public Detector {
       tr.next_lag = lag + 1;
       if (tr.open && lag > tr.end) finalize(c, t, out);
     }
+  }
+
+  /// Lags [base, base + count) of a full window on template t's decimated baseband correlation: when
+  /// no decimated lag reaches the threshold times the template's worst between-lag loss (so no lag
+  /// in between can cross it either), does what scan()'s fast path does and returns true; else
+  /// returns false (nothing changed) and the caller scans the full-rate correlation.
+  bool quiet_baseband(std::uint32_t c, std::size_t t, std::uint64_t base, std::size_t count) noexcept {
+    Track& tr = track(c, t);
+    corr_.correlate_baseband(t);
+    const std::size_t d = corr_.baseband_decimation(t);
+    const std::complex<float>* z = corr_.baseband(t);
+    const std::size_t nm = (count + d - 1) / d;  // decimated lags m d < count
+    float* pw = pow_.data();
+    float pmax = 0.0f;
+    for (std::size_t m = 0; m < nm; ++m) {
+      pw[m] = std::norm(z[m]);
+      pmax = std::max(pmax, pw[m]);
+    }
+    // The same noise estimate as scan(): the median over every kNoiseStride-th lag.
+    const std::size_t step = kNoiseStride / d;
+    std::size_t k = 0;
+    for (std::size_t m = 0; m < nm; m += step) sorted_[k++] = pw[m];
+    const auto mid = sorted_.begin() + static_cast<std::ptrdiff_t>(k / 2);
+    std::nth_element(sorted_.begin(), mid, sorted_.begin() + static_cast<std::ptrdiff_t>(k));
+    const double p_window = static_cast<double>(*mid) / std::numbers::ln2;
+    const double noise = std::max({tr.noise, p_window, std::numeric_limits<double>::min()});
+    const double thr = noise * threshold_;
+    if (pmax > kBasebandMargin * corr_.baseband_peak_ratio(t) * thr) return false;
+    const std::uint64_t lag = base + count - 1;
+    const std::size_t r = (c * templates_ + t) * ring_size_ + (lag & ring_mask_);
+    const std::complex<float> zl = corr_.baseband_lag(t, count - 1);
+    ring_re_[r] = zl.real();
+    ring_im_[r] = zl.imag();
+    ring_pow_[r] = std::norm(zl);
+    ring_ok_[r] = 0;
+    tr.next_lag = base + count;
+    tr.noise = tr.noise > 0.0 ? 0.5 * (tr.noise + p_window) : p_window;
+    return true;
   }
 
   /// Scans lags [base, base + count) of template t's correlation; true if any crossed the threshold.
@@ -397,7 +444,9 @@ class ChirpDetector final : public Detector {
     tr.allowed = k + spacing_frames_;
   }
 
-  static constexpr std::size_t kNoiseStride = 4;
+  static constexpr std::size_t kNoiseStride = 4;  // a multiple of every baseband decimation (4, 2)
+  // Extra margin (-3 dB) of the baseband screen for noise and interference between decimated lags.
+  static constexpr double kBasebandMargin = 0.5;
 
   Track& track(std::uint32_t c, std::size_t t) noexcept { return tracks_[c * templates_ + t]; }
 

@@ -64,6 +64,7 @@ struct Member {
   double rho;
   bool known;      // refined before (a final detection), ci/cq valid
   double rho_fine = 0.0;  // Pearson of the residual with the template at the refined lag
+  std::int64_t at = 0;    // integer frame at which ci·g_i + cq·g_q is subtracted from the residual
 };
 
 struct Channel {
@@ -123,6 +124,7 @@ class GoldcodeDetector final : public Detector {
     min_rho_ = params.get_float("min_pearson");
     min_rho_coarse_ = params.get_float("min_pearson_coarse");
     min_snr_db_ = params.get_float("min_snr_db");
+    min_snr_lin_ = std::pow(10.0, min_snr_db_ / 10.0);
     const double amplitude = 1.0;
     const double lo = carrier_hz_ - bw / 2.0, hi = carrier_hz_ + bw / 2.0;
     if (!(lo > 0.0) || !(hi < fs_ / 2.0))
@@ -267,7 +269,9 @@ class GoldcodeDetector final : public Detector {
     rho_.assign(hop_ * templates_.size(), 0.0);
     noise_.assign(templates_.size(), 0.0);
     members_.reserve(2 * templates_.size() + 1);  // u + per other code: last detection and open candidate
-    resid_.assign(full_len_ + 2 * static_cast<std::size_t>(refine_half_) + 2, 0.0f);
+    // Members lie within one template length of the peak on either side (evaluate_peak).
+    resid_.assign(3 * full_len_ + 4 * static_cast<std::size_t>(refine_half_) + 8, 0.0f);
+    lag_.assign(2 * static_cast<std::size_t>(refine_half_) + 1, Lag{});
     pre_e_.assign(nfft_ + 1, 0.0);
     pre_si_.assign(nfft_ + 1, 0.0);
     pre_sq_.assign(nfft_ + 1, 0.0);
@@ -440,8 +444,8 @@ class GoldcodeDetector final : public Detector {
     // Final one code length after the first peak, plus the lags the full-rate refinement reaches.
     if (k.open && lag > k.first_lag + len + 3 + (2 * refine_half_) / static_cast<std::int64_t>(D_)) finalize(c, u, out);
     if (lag < ch.grid_start) return;  // window reaches back before the data since the last restart
-    const double snr_db = 10.0 * std::log10(rho * rho / noise + 1e-30);
-    if (rho >= min_rho_coarse_ && snr_db >= min_snr_db_ && lag > ch.last_final[u] + len / 2) {
+    // ρ²/noise ≥ 10^(min_snr_db/10), without a logarithm per lag and code.
+    if (rho >= min_rho_coarse_ && rho * rho >= min_snr_lin_ * noise && lag > ch.last_final[u] + len / 2) {
       if (!k.open) {
         k.open = true;
         k.first_lag = lag;
@@ -478,21 +482,32 @@ class GoldcodeDetector final : public Detector {
       if (chans_[c].cand[u].open) finalize(c, u, out);
   }
 
-  // Two dot products with 8 float lanes each (vectorisable without -ffast-math); the sums of
-  // 8 partial sums are exact enough for a peak search (relative error ~1e-6).
+  // Kernels of the refinement, on GCC/Clang vector extensions (SSE on x86-64, NEON on the Pi; no
+  // -ffast-math needed): 8 float lanes per accumulator, the 8 partial sums added in double (relative
+  // error ~1e-6, plenty for a peak search and least-squares amplitudes).
+  using v4f = float __attribute__((vector_size(16)));
+  static v4f load4(const float* p) noexcept {
+    v4f v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+  }
+  static void store4(float* p, v4f v) noexcept { std::memcpy(p, &v, sizeof v); }
+  static double hsum(v4f a, v4f b) noexcept {
+    return (static_cast<double>(a[0]) + a[1] + a[2] + a[3]) + (static_cast<double>(b[0]) + b[1] + b[2] + b[3]);
+  }
+
+  // Σ y·a and Σ y·b over n samples.
   static void dot2(const float* y, const float* a, const float* b, std::size_t n, double& ra, double& rb) noexcept {
-    float sa[8] = {}, sb[8] = {};
+    v4f sa0 = {}, sa1 = {}, sb0 = {}, sb1 = {};
     std::size_t j = 0;
-    for (; j + 8 <= n; j += 8)
-      for (int t = 0; t < 8; ++t) {
-        sa[t] += y[j + t] * a[j + t];
-        sb[t] += y[j + t] * b[j + t];
-      }
-    double da = 0.0, db = 0.0;
-    for (int t = 0; t < 8; ++t) {
-      da += sa[t];
-      db += sb[t];
+    for (; j + 8 <= n; j += 8) {
+      const v4f y0 = load4(y + j), y1 = load4(y + j + 4);
+      sa0 += y0 * load4(a + j);
+      sa1 += y1 * load4(a + j + 4);
+      sb0 += y0 * load4(b + j);
+      sb1 += y1 * load4(b + j + 4);
     }
+    double da = hsum(sa0, sa1), db = hsum(sb0, sb1);
     for (; j < n; ++j) {
       da += static_cast<double>(y[j]) * a[j];
       db += static_cast<double>(y[j]) * b[j];
@@ -501,60 +516,119 @@ class GoldcodeDetector final : public Detector {
     rb = db;
   }
 
+  // Σ y² over n samples.
+  static double energy(const float* y, std::size_t n) noexcept {
+    v4f s0 = {}, s1 = {};
+    std::size_t j = 0;
+    for (; j + 8 <= n; j += 8) {
+      const v4f y0 = load4(y + j), y1 = load4(y + j + 4);
+      s0 += y0 * y0;
+      s1 += y1 * y1;
+    }
+    double e = hsum(s0, s1);
+    for (; j < n; ++j) e += static_cast<double>(y[j]) * y[j];
+    return e;
+  }
+
+  // y[j] −= ci·a[j] + cq·b[j], j < n.
+  static void sub2(float* y, const float* a, const float* b, float ci, float cq, std::size_t n) noexcept {
+    const v4f vi = {ci, ci, ci, ci}, vq = {cq, cq, cq, cq};
+    std::size_t j = 0;
+    for (; j + 4 <= n; j += 4) store4(y + j, load4(y + j) - (vi * load4(a + j) + vq * load4(b + j)));
+    for (; j < n; ++j) y[j] -= ci * a[j] + cq * b[j];
+  }
+
   // Re-estimates one member's arrival (±half frames around its estimate) and in-phase/quadrature
   // amplitudes on the signal minus every other member's current reconstruction.
-  void refine_member(Channel& ch, Member& mb, std::int64_t half) noexcept {
+  // Σ x² of the band-passed audio over frames [first, first + n) (ring, at most two pieces).
+  double ring_energy(const Channel& ch, std::int64_t first, std::size_t n) const noexcept {
+    const std::size_t at = static_cast<std::uint64_t>(first) & ring_mask_;
+    const std::size_t n1 = std::min(n, ring_size_ - at);
+    return energy(ch.ring.data() + at, n1) + energy(ch.ring.data(), n - n1);
+  }
+
+  // resid_ += sign · (ci·g_i + cq·g_q) at the member's subtracted position `at`.
+  void add_recon(const Member& mb, float sign) noexcept {
+    const CodeTemplate& t = templates_[mb.code];
+    sub2(resid_.data() + (mb.at - res_lo_), t.full_i.data(), t.full_q.data(), -sign * static_cast<float>(mb.ci),
+         -sign * static_cast<float>(mb.cq), full_len_);
+  }
+
+  void refine_member(const Channel& ch, Member& mb, std::int64_t half) noexcept {
     const CodeTemplate& t = templates_[mb.code];
     const std::int64_t centre = static_cast<std::int64_t>(std::llround(mb.frame));
     const std::int64_t lo = centre - half;
-    const std::size_t span = full_len_ + 2 * static_cast<std::size_t>(half) + 1;
-    for (std::size_t i = 0; i < span; ++i) resid_[i] = ch.ring[static_cast<std::uint64_t>(lo + static_cast<std::int64_t>(i)) & ring_mask_];
-    for (const Member& o : members_) {
-      if (&o == &mb || (o.ci == 0.0 && o.cq == 0.0)) continue;
-      const CodeTemplate& to = templates_[o.code];
-      const std::int64_t oc = static_cast<std::int64_t>(std::llround(o.frame));
-      // resid[i] covers frame lo+i; o's template sample j sits at frame oc+j.
-      const std::int64_t j0 = std::max<std::int64_t>(0, lo - oc);
-      const std::int64_t j1 = std::min<std::int64_t>(static_cast<std::int64_t>(full_len_), lo + static_cast<std::int64_t>(span) - oc);
-      for (std::int64_t j = j0; j < j1; ++j)
-        resid_[static_cast<std::size_t>(oc + j - lo)] -= static_cast<float>(o.ci * to.full_i[j] + o.cq * to.full_q[j]);
-    }
-    double best = -1.0, e_prev = -1.0, e_bp = -1.0, e_bn = -1.0, bi = 0.0, bq = 0.0;
-    std::int64_t best_l = 0;
-    bool next_pending = false;
-    for (std::int64_t l = 0; l <= 2 * half; ++l) {
-      double ai = 0.0, aq = 0.0;
-      dot2(resid_.data() + l, t.full_i.data(), t.full_q.data(), full_len_, ai, aq);
-      const double e = std::sqrt(ai * ai + aq * aq);
-      if (next_pending) {
-        e_bn = e;
-        next_pending = false;
+    float* const resid = resid_.data() + (lo - res_lo_);
+    if (incremental_) {
+      // resid_ holds the signal minus every member's current reconstruction (evaluate_peak): put
+      // this member's own back, search, subtract the new one (two passes instead of one per other
+      // member: cheaper from 3 members on).
+      if (mb.ci != 0.0 || mb.cq != 0.0) add_recon(mb, +1.0f);
+    } else {
+      // Fresh: the audio over the search reach minus the other members' reconstructions.
+      const std::size_t span = full_len_ + 2 * static_cast<std::size_t>(half) + 1;
+      const std::size_t at = static_cast<std::uint64_t>(lo) & ring_mask_;  // at most two pieces
+      const std::size_t n1 = std::min(span, ring_size_ - at);
+      std::memcpy(resid, ch.ring.data() + at, n1 * sizeof(float));
+      std::memcpy(resid + n1, ch.ring.data(), (span - n1) * sizeof(float));
+      for (const Member& o : members_) {
+        if (&o == &mb || (o.ci == 0.0 && o.cq == 0.0)) continue;
+        const CodeTemplate& to = templates_[o.code];
+        // resid[i] covers frame lo+i; o's template sample j sits at frame o.at+j.
+        const std::int64_t j0 = std::max<std::int64_t>(0, lo - o.at);
+        const std::int64_t j1 = std::min<std::int64_t>(static_cast<std::int64_t>(full_len_), lo + static_cast<std::int64_t>(span) - o.at);
+        if (j1 > j0)
+          sub2(resid + (o.at + j0 - lo), to.full_i.data() + j0, to.full_q.data() + j0, static_cast<float>(o.ci),
+               static_cast<float>(o.cq), static_cast<std::size_t>(j1 - j0));
       }
-      if (e > best) {
-        best = e;
-        best_l = l;
-        bi = ai;
-        bq = aq;
-        e_bp = e_prev;
-        next_pending = l < 2 * half;
-        e_bn = -1.0;
-      }
-      e_prev = e;
     }
+    // Hill climb on the matched-filter envelope from the centre (the envelope's main lobe is
+    // ~fs/band_width wide, wider than the ±half window): the local maximum nearest the estimate, in
+    // 3..half+2 correlations instead of 2·half+1.
+    const std::int64_t last = 2 * half;
+    auto eval = [&](std::int64_t l) noexcept {
+      Lag& g = lag_[static_cast<std::size_t>(l)];
+      if (!g.done) {
+        dot2(resid + l, t.full_i.data(), t.full_q.data(), full_len_, g.ai, g.aq);
+        g.e = std::sqrt(g.ai * g.ai + g.aq * g.aq);
+        g.done = true;
+      }
+      return g.e;
+    };
+    for (std::int64_t l = 0; l <= last; ++l) lag_[static_cast<std::size_t>(l)].done = false;
+    std::int64_t best_l = half;
+    double best = eval(best_l);
+    for (;;) {
+      const double el = best_l > 0 ? eval(best_l - 1) : -1.0;
+      const double er = best_l < last ? eval(best_l + 1) : -1.0;
+      if (el > best && el >= er) {
+        --best_l;
+        best = el;
+      } else if (er > best) {
+        ++best_l;
+        best = er;
+      } else {
+        break;
+      }
+    }
+    const double bi = lag_[static_cast<std::size_t>(best_l)].ai, bq = lag_[static_cast<std::size_t>(best_l)].aq;
+    const double e_bp = best_l > 0 ? eval(best_l - 1) : -1.0;
+    const double e_bn = best_l < last ? eval(best_l + 1) : -1.0;
     double off = 0.0;
     if (e_bp >= 0.0 && e_bn >= 0.0) {
       const double den = e_bp - 2.0 * best + e_bn;
       if (den < 0.0) off = std::clamp(0.5 * (e_bp - e_bn) / den, -0.5, 0.5);
     }
     mb.frame = static_cast<double>(lo + best_l) + off;
-    double e_res = 0.0;
-    for (std::size_t j = 0; j < full_len_; ++j) {
-      const double v = resid_[static_cast<std::size_t>(best_l) + j];
-      e_res += v * v;
-    }
+    const double e_res = energy(resid + best_l, full_len_);
     mb.rho_fine = e_res > 0.0 && t.full_energy > 0.0 ? best / std::sqrt(e_res * t.full_energy) : 0.0;
+    // A residual ≥ 60 dB below the audio is the others' reconstruction rounding, not a signal: its
+    // Pearson coefficient is noise of float arithmetic (noise-free input).
+    if (mb.rho_fine >= min_rho_ && e_res < 1e-6 * ring_energy(ch, lo + best_l, full_len_)) mb.rho_fine = 0.0;
     mb.ci = t.full_energy > 0.0 ? bi / t.full_energy : 0.0;
     mb.cq = t.full_energy > 0.0 ? bq / t.full_energy : 0.0;
+    mb.at = static_cast<std::int64_t>(std::llround(mb.frame));
+    if (incremental_ && (mb.ci != 0.0 || mb.cq != 0.0)) add_recon(mb, -1.0f);
   }
 
   // Joint refinement of code u's peak `k`: arrival frame, amplitude and the refined Pearson
@@ -601,7 +675,26 @@ class GoldcodeDetector final : public Detector {
                    members_.end());
     const bool self_ok = std::any_of(members_.begin(), members_.end(), [&](const Member& mb) { return mb.code == u; });
     rho_fine = k.rho;  // without the refinement the coarse coefficient is all there is
-    if (self_ok) {
+    // One residual buffer over every member's reach: a member moves by ≤ refine_half_ + 1/2 in
+    // round 0 and ≤ 3/2 in round 1, inside the 2·refine_half_ margin `available` guarantees.
+    std::int64_t first = INT64_MAX, end = INT64_MIN;
+    for (Member& mb : members_) {
+      mb.at = static_cast<std::int64_t>(std::llround(mb.frame));
+      first = std::min(first, mb.at - 2 * refine_half_);
+      end = std::max(end, mb.at + 2 * refine_half_ + static_cast<std::int64_t>(full_len_));
+    }
+    if (self_ok && end - first <= static_cast<std::int64_t>(resid_.size())) {
+      res_lo_ = first;
+      incremental_ = members_.size() >= 3;
+      if (incremental_) {
+        const std::size_t span = static_cast<std::size_t>(end - first);
+        const std::size_t at = static_cast<std::uint64_t>(first) & ring_mask_;  // at most two pieces
+        const std::size_t n1 = std::min(span, ring_size_ - at);
+        std::memcpy(resid_.data(), ch.ring.data() + at, n1 * sizeof(float));
+        std::memcpy(resid_.data() + n1, ch.ring.data(), (span - n1) * sizeof(float));
+        for (const Member& mb : members_)
+          if (mb.ci != 0.0 || mb.cq != 0.0) add_recon(mb, -1.0f);
+      }
       const int rounds = members_.size() > 1 ? 2 : 1;
       for (int round = 0; round < rounds; ++round) {
         for (Member& mb : members_) {
@@ -677,6 +770,7 @@ class GoldcodeDetector final : public Detector {
   double min_rho_ = 0.2;
   double min_rho_coarse_ = 0.15;
   double min_snr_db_ = 10.0;
+  double min_snr_lin_ = 10.0;
   std::size_t D_ = 1;
   std::vector<int> code_index_;
   std::vector<dsp::Biquad> sos_;
@@ -691,7 +785,14 @@ class GoldcodeDetector final : public Detector {
   std::vector<cf> spec_xi_, spec_xq_, spec_w_;
   std::vector<double> rho_, noise_, pre_e_, pre_si_, pre_sq_;
   std::vector<Member> members_;
-  std::vector<float> resid_;
+  std::vector<float> resid_;  // joint refinement residual; resid_[i] is frame res_lo_ + i
+  std::int64_t res_lo_ = 0;
+  bool incremental_ = false;  // resid_ kept up to date across refinements (≥ 3 members)
+  struct Lag {
+    double ai = 0.0, aq = 0.0, e = 0.0;
+    bool done = false;
+  };
+  std::vector<Lag> lag_;  // refinement: matched-filter outputs per lag of the search window
   cd rot_{1.0, 0.0};
   std::uint64_t expected_frame_ = 0;
   bool have_expected_ = false;

@@ -15,9 +15,7 @@
 
 namespace locus::app {
 
-namespace {
-
-bool parse_level(const std::string& s, LogLevel& out) {
+bool parse_log_level(const std::string& s, LogLevel& out) {
   static const std::pair<const char*, LogLevel> kLevels[] = {{"trace", LogLevel::Trace}, {"debug", LogLevel::Debug},
                                                              {"info", LogLevel::Info},   {"warn", LogLevel::Warn},
                                                              {"error", LogLevel::Error}};
@@ -29,6 +27,8 @@ bool parse_level(const std::string& s, LogLevel& out) {
   }
   return false;
 }
+
+namespace {
 
 void print_config_errors(const ConfigErrors& e) {
   for (const ConfigError& err : e.errors()) std::cerr << err.format() << "\n";
@@ -131,7 +131,7 @@ int run_node(const RunOptions& opts) {
   }
   if (opts.output) config.output.path = *opts.output;
   LogLevel level = config.log_level;
-  if (opts.log_level) parse_level(*opts.log_level, level);
+  if (opts.log_level) parse_log_level(*opts.log_level, level);
   set_log_level(level);
   auto log = host_logger();
 

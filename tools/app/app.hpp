@@ -25,6 +25,9 @@ struct RunOptions {
   std::optional<std::string> log_level;
 };
 
+/// "trace" | "debug" | "info" | "warn" | "error" -> LogLevel; false for anything else.
+bool parse_log_level(const std::string& s, LogLevel& out);
+
 /// Adds the options of RunOptions to a CLI11 (sub)command.
 void add_run_options(CLI::App& cmd, RunOptions& opts);
 

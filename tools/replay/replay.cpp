@@ -23,19 +23,6 @@ namespace locus::app {
 
 namespace {
 
-bool parse_level(const std::string& s, LogLevel& out) {
-  static const std::pair<const char*, LogLevel> kLevels[] = {{"trace", LogLevel::Trace}, {"debug", LogLevel::Debug},
-                                                             {"info", LogLevel::Info},   {"warn", LogLevel::Warn},
-                                                             {"error", LogLevel::Error}};
-  for (const auto& [name, level] : kLevels) {
-    if (s == name) {
-      out = level;
-      return true;
-    }
-  }
-  return false;
-}
-
 /// The device's `emits` as JSON with the field names of scene-format.md.
 std::string emits_json(const std::vector<dsp::SignalSpec>& emits) {
   nlohmann::ordered_json out = nlohmann::ordered_json::array();
@@ -201,7 +188,7 @@ int run_replay(const ReplayOptions& opts) {
     return kExitBadConfig;
   }
   LogLevel level = config.log_level;
-  if (opts.log_level) parse_level(*opts.log_level, level);
+  if (opts.log_level) parse_log_level(*opts.log_level, level);
   set_log_level(level);
   auto log = host_logger();
 

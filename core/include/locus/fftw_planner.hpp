@@ -18,6 +18,7 @@ class FftwPlanner final : public FftPlanner {
   ~FftwPlanner() override;
 
   std::unique_ptr<RealFft> plan_real(std::size_t n) override;
+  std::unique_ptr<ComplexFft> plan_complex(std::size_t n) override;
   /// [main] Writes the accumulated wisdom to the wisdom path now; false on failure.
   bool save_wisdom();
 

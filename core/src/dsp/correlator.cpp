@@ -10,6 +10,14 @@
 
 namespace locus::dsp {
 
+namespace {
+// Plain complex product (std::complex's operator* adds NaN/Inf recovery branches that do not
+// vectorise; the inputs here are finite).
+inline std::complex<float> mul(std::complex<float> a, std::complex<float> b) noexcept {
+  return {a.real() * b.real() - a.imag() * b.imag(), a.real() * b.imag() + a.imag() * b.real()};
+}
+}  // namespace
+
 Correlator::Correlator() = default;
 Correlator::~Correlator() = default;
 Correlator::Correlator(Correlator&&) noexcept = default;
@@ -66,11 +74,59 @@ void Correlator::configure(const std::vector<std::vector<float>>& templates, Fft
     }
     centroid_[t] = m0 > 0.0 ? 2.0 * std::numbers::pi * (m1 / m0) / static_cast<double>(n) : 0.0;
   }
+  bb_dec_.assign(templates_, 1);
+  bb_k0_.assign(templates_, 0);
+  bb_ratio_.assign(templates_, 1.0);
+  bb_fft_.clear();
+  bb_fft_.resize(templates_);
+  bb_tw_.assign(templates_, {});
+  if (options.baseband && analytic_) {
+    for (std::size_t t = 0; t < templates_; ++t) {
+      // |H|^2 from the stored conj(H)/N (the scale does not matter for relative levels).
+      const std::complex<float>* spec = &tmpl_spec_[t * nb];
+      double pmax = 0.0;
+      for (std::size_t k = 0; k < nb; ++k) pmax = std::max(pmax, double(std::norm(spec[k])));
+      std::size_t lo = nb, hi = 0;
+      for (std::size_t k = 0; k < nb; ++k)
+        if (double(std::norm(spec[k])) >= 1e-4 * pmax) lo = std::min(lo, k), hi = std::max(hi, k);
+      if (lo > hi) continue;
+      for (std::size_t d : {std::size_t{4}, std::size_t{2}}) {
+        const std::size_t m = n / d;
+        if (m > nb || m < 2) continue;
+        const std::size_t centre = (lo + hi) / 2;
+        const std::size_t k0 = std::min(centre > m / 2 ? centre - m / 2 : 0, nb - m);
+        if (k0 > lo || k0 + m - 1 < hi) continue;
+        bb_dec_[t] = d;
+        bb_k0_[t] = k0;
+        bb_fft_[t] = planner.plan_complex(m);
+        // Envelope of the template's own analytic autocorrelation D/2 lags (or fewer) off its peak.
+        auto r_at = [&](double off) {
+          std::complex<double> acc = 0.0;
+          for (std::size_t k = k0; k < k0 + m; ++k) {
+            const double w = (k == 0 || 2 * k == n) ? 1.0 : 2.0;
+            acc += w * double(std::norm(spec[k])) * std::polar(1.0, 2.0 * std::numbers::pi * double(k) * off / double(n));
+          }
+          return std::norm(acc);
+        };
+        const double r0 = r_at(0.0);
+        double ratio = 1.0;
+        for (std::size_t off = 1; off <= d / 2; ++off) ratio = std::min(ratio, r_at(double(off)) / r0);
+        bb_ratio_[t] = ratio;
+        // exp(2 pi j k (hop - 1) / N) over the band: the last lag of a full window (baseband_lag).
+        bb_tw_[t].resize(m);
+        for (std::size_t i = 0; i < m; ++i)
+          bb_tw_[t][i] = std::complex<float>(std::polar(
+              1.0, 2.0 * std::numbers::pi * double((k0 + i) * (hop_ - 1) % n) / double(n)));
+        break;
+      }
+    }
+  }
   window_.assign(channels_ * n, 0.0f);
   fill_.assign(channels_, 0);
   start_.assign(channels_, 0);
   spec_buf_.assign(nb, {});
   prod_.assign(nb, {});
+  prod_im_.assign(analytic_ ? nb : 0, {});
   out_re_.assign(templates_ * n, 0.0f);
   out_im_.assign(analytic_ ? templates_ * n : 0, 0.0f);
   spec_ = spec_buf_.data();
@@ -91,21 +147,68 @@ std::size_t Correlator::push(std::size_t ch, const float* x, std::size_t n, std:
 void Correlator::transform(std::size_t ch) noexcept {
   float* w = &window_[ch * n_];
   if (fill_[ch] < n_) std::fill(w + fill_[ch], w + n_, 0.0f);
-  fft_->forward(w, spec_);
+  fft_->forward_aligned(w, spec_);
 }
 
 void Correlator::correlate(std::size_t t) noexcept {
   const std::size_t nb = n_ / 2 + 1;
   const std::complex<float>* h = &tmpl_spec_[t * nb];
   std::complex<float>* p = prod_.data();
-  for (std::size_t k = 0; k < nb; ++k) p[k] = spec_[k] * h[k];
-  fft_->inverse(p, &out_re_[t * n_]);
-  if (!analytic_) return;
-  // Hilbert part: -j * sign(f) on the product (DC and Nyquist have no quadrature component).
-  p[0] = {0.0f, 0.0f};
-  for (std::size_t k = 1; k + 1 < nb; ++k) p[k] = {p[k].imag(), -p[k].real()};
-  p[nb - 1] = {0.0f, 0.0f};
-  fft_->inverse(p, &out_im_[t * n_]);
+  if (!analytic_) {
+    for (std::size_t k = 0; k < nb; ++k) p[k] = mul(spec_[k], h[k]);
+    fft_->inverse_destroying(p, &out_re_[t * n_]);
+    return;
+  }
+  // Hilbert part: -j * sign(f) on the product (DC and Nyquist have no quadrature component). Both
+  // products are formed first because the inverse transforms consume their inputs.
+  std::complex<float>* q = prod_im_.data();
+  for (std::size_t k = 0; k < nb; ++k) {
+    const std::complex<float> v = mul(spec_[k], h[k]);
+    p[k] = v;
+    q[k] = {v.imag(), -v.real()};
+  }
+  q[0] = {0.0f, 0.0f};
+  q[nb - 1] = {0.0f, 0.0f};
+  fft_->inverse_destroying(p, &out_re_[t * n_]);
+  fft_->inverse_destroying(q, &out_im_[t * n_]);
+}
+
+void Correlator::correlate_baseband(std::size_t t) noexcept {
+  const std::size_t nb = n_ / 2 + 1;
+  const std::size_t k0 = bb_k0_[t];
+  ComplexFft& f = *bb_fft_[t];
+  const std::size_t m = f.size();
+  const std::complex<float>* h = &tmpl_spec_[t * nb + k0];
+  const std::complex<float>* x = spec_ + k0;
+  std::complex<float>* in = f.input();
+  // z = y + j H{y}: bins 1..N/2-1 count twice, DC and Nyquist once.
+  for (std::size_t i = 0; i < m; ++i) in[i] = mul(x[i], h[i]) * 2.0f;
+  if (k0 == 0) in[0] *= 0.5f;
+  if (k0 + m == nb) in[m - 1] *= 0.5f;
+  f.inverse();
+}
+
+std::complex<float> Correlator::baseband_lag(std::size_t t, std::size_t i) const noexcept {
+  const ComplexFft& f = *bb_fft_[t];
+  const std::complex<float>* in = f.input();
+  if (i + 1 == hop_) {  // the common case: a table of twiddles
+    const std::complex<float>* tw = bb_tw_[t].data();
+    float re = 0.0f, im = 0.0f;
+    for (std::size_t k = 0; k < f.size(); ++k) {
+      re += in[k].real() * tw[k].real() - in[k].imag() * tw[k].imag();
+      im += in[k].real() * tw[k].imag() + in[k].imag() * tw[k].real();
+    }
+    return {re, im};
+  }
+  const double w = 2.0 * std::numbers::pi * static_cast<double>(i) / static_cast<double>(n_);
+  std::complex<double> rot = std::polar(1.0, w * static_cast<double>(bb_k0_[t]));
+  const std::complex<double> step = std::polar(1.0, w);
+  std::complex<double> acc = 0.0;
+  for (std::size_t k = 0; k < f.size(); ++k) {
+    acc += std::complex<double>(in[k]) * rot;
+    rot *= step;
+  }
+  return {static_cast<float>(acc.real()), static_cast<float>(acc.imag())};
 }
 
 void Correlator::advance(std::size_t ch) noexcept {

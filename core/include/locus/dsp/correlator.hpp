@@ -32,11 +32,27 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <new>
 #include <vector>
 
 #include "locus/fft.hpp"
 
 namespace locus::dsp {
+
+/// std::allocator with 64-byte alignment (FFT plans run directly on these buffers, see RealFft).
+template <class T>
+struct AlignedAllocator {
+  using value_type = T;
+  AlignedAllocator() = default;
+  template <class U>
+  AlignedAllocator(const AlignedAllocator<U>&) noexcept {}
+  T* allocate(std::size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t{64})); }
+  void deallocate(T* p, std::size_t) noexcept { ::operator delete(p, std::align_val_t{64}); }
+  template <class U>
+  bool operator==(const AlignedAllocator<U>&) const noexcept { return true; }
+};
+template <class T>
+using AlignedVector = std::vector<T, AlignedAllocator<T>>;
 
 class Correlator {
  public:
@@ -44,6 +60,7 @@ class Correlator {
     std::size_t channels = 1;   ///< independent input streams sharing the templates and plans
     std::size_t fft_size = 0;   ///< N; 0 = automatic (bit_ceil(4 * longest template), at least 256)
     bool analytic = true;       ///< also produce the Hilbert (quadrature) part of every output
+    bool baseband = false;      ///< also plan the decimated complex-baseband outputs (see correlate_baseband)
   };
 
   Correlator();
@@ -96,6 +113,23 @@ class Correlator {
   const float* real(std::size_t t) const noexcept { return &out_re_[t * n_]; }
   const float* imag(std::size_t t) const noexcept { return analytic_ ? &out_im_[t * n_] : nullptr; }
 
+  /// Complex-baseband decimation D of template t: 4 or 2 when its band (bins within -40 dB of its
+  /// spectral peak) fits in N/D bins of the analytic spectrum, else 1 (no baseband output; also 1
+  /// without Options::baseband).
+  std::size_t baseband_decimation(std::size_t t) const noexcept { return bb_dec_.empty() ? 1 : bb_dec_[t]; }
+  /// For template t alone (no noise): the smallest |z|^2 at a decimated lag relative to the peak
+  /// |z|^2, i.e. the worst loss of a peak that falls between two decimated lags (D/2 lags off).
+  double baseband_peak_ratio(std::size_t t) const noexcept { return bb_ratio_.empty() ? 1.0 : bb_ratio_[t]; }
+  /// [RT] Analytic correlation of the last transformed window with template t at every D-th lag, by
+  /// an N/D-point complex inverse FFT of the template's band (frequency-domain decimation, exact for
+  /// the bins in the band): |baseband(t)[m]| = |z[window_start + m D]| for m < N/D (the phase is
+  /// turned by a linear term; use baseband_lag() for the true value). Requires D > 1.
+  void correlate_baseband(std::size_t t) noexcept;
+  const std::complex<float>* baseband(std::size_t t) const noexcept { return bb_fft_[t]->output(); }
+  /// [RT] The analytic output z = real + j imag at lag window_start + i from the last
+  /// correlate_baseband(t) (direct sum over the N/D band bins, O(N/D)).
+  std::complex<float> baseband_lag(std::size_t t, std::size_t i) const noexcept;
+
   /// [RT] Drops the first hop() samples of a full window (keeps the last L_max - 1).
   void advance(std::size_t ch) noexcept;
 
@@ -116,13 +150,17 @@ class Correlator {
   std::vector<double> energy_;
   std::vector<double> centroid_;
   std::vector<std::complex<float>> tmpl_spec_;  // templates x bins, conj(H)/N (normalised)
-  std::vector<float> window_;                   // channels x N
+  AlignedVector<float> window_;                 // channels x N
   std::vector<std::size_t> fill_;
   std::vector<std::uint64_t> start_;
-  std::vector<std::complex<float>> spec_buf_;   // bins
-  std::vector<std::complex<float>> prod_;       // bins
-  std::vector<float> out_re_, out_im_;          // templates x N
+  AlignedVector<std::complex<float>> spec_buf_;  // bins
+  AlignedVector<std::complex<float>> prod_, prod_im_;  // bins (product, and its Hilbert part)
+  AlignedVector<float> out_re_, out_im_;         // templates x N
   std::complex<float>* spec_ = nullptr;
+  std::vector<std::size_t> bb_dec_, bb_k0_;          // per template: decimation, first band bin
+  std::vector<double> bb_ratio_;
+  std::vector<std::vector<std::complex<float>>> bb_tw_;  // per template: twiddles of lag hop - 1
+  std::vector<std::unique_ptr<ComplexFft>> bb_fft_;  // per template (N/D points; input = band bins)
 };
 
 /// Direct time-domain correlation y[k] = sum_j x[k+j] h[j] for k = 0..n_x - n_h (reference and
