@@ -22,18 +22,6 @@ namespace locus {
 
 namespace {
 
-ParamSpec fspec(std::string key, double def, double min, double max, std::string unit, std::string doc) {
-  ParamSpec s;
-  s.key = std::move(key);
-  s.type = ParamType::Float;
-  s.default_value = def;
-  s.min = min;
-  s.max = max;
-  s.unit = std::move(unit);
-  s.doc = std::move(doc);
-  return s;
-}
-
 enum class Refine : std::uint8_t { Phase, Gaussian, Parabolic };
 
 class ChirpDetector final : public Detector {
@@ -117,6 +105,16 @@ class ChirpDetector final : public Detector {
       span_[t] = templates[t].size() + guard_[t];
       longest_span = std::max(longest_span, window_frames_ + span_[t] + 2 * guard_[t]);
     }
+    // Multipath fit windows: [peak - guard, peak + 3 guard] (the direct path plus reflections up to
+    // ~6 mainlobes later, whose skirts and sidelobes bias the composite peak).
+    fits_.assign(templates_, dsp::MultipathFit{});
+    std::size_t widest = 0;
+    for (std::size_t t = 0; t < templates_; ++t) {
+      const std::size_t w = static_cast<std::size_t>(4 * guard_[t] + 1);
+      fits_[t].configure(templates[t], n, ctx.fft, corr_.centroid_omega(t), w + 2, w);
+      widest = std::max(widest, w);
+    }
+    zwin_.assign(widest, {});
     ring_size_ = std::bit_ceil(static_cast<std::size_t>(longest_span + 16));
     ring_mask_ = ring_size_ - 1;
 
@@ -190,6 +188,7 @@ class ChirpDetector final : public Detector {
     double best = 0.0;
     double thr_pow = 0.0;        // absolute threshold when the event opened
     double noise_at_open = 0.0;
+    std::uint64_t valid_from = 0;  // first ring lag written in full for the open event
   };
 
   static dsp::SignalSpec lfm(double f0, double f1, double duration, double fade) {
@@ -352,17 +351,30 @@ class ChirpDetector final : public Detector {
     const float* xs = corr_.samples(c);
     const std::size_t len = corr_.template_length(t);
     const double eh = corr_.template_energy(t);
+    // Computed lazily (only lags above the threshold need it): slid forward from the last lag it was
+    // computed at, or summed afresh when that is more than a template length back.
     double ex = 0.0;
-    for (std::size_t j = 0; j < len; ++j) ex += static_cast<double>(xs[j]) * xs[j];
-    for (std::size_t i = 0; i < count; ++i) {
-      if (i > 0) {
-        const double a = xs[i - 1], b = xs[i + len - 1];
-        ex += b * b - a * a;
+    std::size_t ex_at = 0;
+    bool have_ex = false;
+    auto energy_at = [&](std::size_t i) {
+      if (!have_ex || i - ex_at > len) {
+        ex = 0.0;
+        for (std::size_t j = i; j < i + len; ++j) ex += static_cast<double>(xs[j]) * xs[j];
+        have_ex = true;
+      } else {
+        for (std::size_t j = ex_at + 1; j <= i; ++j) {
+          const double a = xs[j - 1], b = xs[j + len - 1];
+          ex += b * b - a * a;
+        }
       }
+      ex_at = i;
+      return ex;
+    };
+    for (std::size_t i = 0; i < count; ++i) {
       const std::uint64_t lag = base + i;
       const std::size_t r = r0 + (lag & ring_mask_);
       const double p = pw[i];
-      const bool ok = p > thr && p >= min_rho2_ * eh * std::max(ex, 0.0);
+      const bool ok = p > thr && p >= min_rho2_ * eh * std::max(energy_at(i), 0.0);
       ring_re_[r] = re[i];
       ring_im_[r] = im[i];
       ring_pow_[r] = pw[i];
@@ -374,6 +386,7 @@ class ChirpDetector final : public Detector {
         if (!tr.open && lag >= tr.allowed) {
           tr.open = true;
           tr.t0 = lag;
+          tr.valid_from = base;  // this window's lags all went into the ring
           tr.best = p;
           tr.best_lag = lag;
           tr.thr_pow = thr;
@@ -418,6 +431,7 @@ class ChirpDetector final : public Detector {
     const double am = std::sqrt(k > 0 ? pow_at(k - 1) : 0.0), a0 = std::sqrt(pk), ap = std::sqrt(pow_at(k + 1));
     const dsp::PeakFit fit = refine_ == Refine::Parabolic ? dsp::parabolic_peak(am, a0, ap) : dsp::gaussian_peak(am, a0, ap);
     double lag = static_cast<double>(k) + fit.offset;
+    double margin = 1.0;  // how firmly the carrier cycle was chosen (multipath fit), scales confidence
     if (refine_ == Refine::Phase) {
       const double coarse = fit.offset;
       const std::int64_t step = coarse > 0.5 ? 1 : coarse < -0.5 ? -1 : 0;
@@ -427,6 +441,31 @@ class ChirpDetector final : public Detector {
                                               coarse - static_cast<double>(step));
       // The phase picks the fraction within the carrier cycle the envelope chose.
       lag = static_cast<double>(k1) + d;
+      // Unless the window around the peak is not a single path: then the cycle comes from the
+      // direct path of a multipath fit (dsp::MultipathFit). Lags before the window the event opened in
+      // (valid_from) may be stale.
+      const std::uint64_t g = guard_[t];
+      const std::uint64_t lo = std::max(k > g ? k - g : 0, std::min(tr.valid_from, tr.t0 > 0 ? tr.t0 - 1 : 0));
+      const std::uint64_t hi = std::min({k + 3 * g, tr.next_lag - 1, lo + zwin_.size() - 1});
+      if (k >= lo && hi >= k + 2) {
+        const std::size_t count = static_cast<std::size_t>(hi - lo + 1);
+        for (std::size_t i = 0; i < count; ++i) {
+          const std::size_t ri = r0 + ((lo + i) & ring_mask_);
+          zwin_[i] = {ring_re_[ri], ring_im_[ri]};
+        }
+        const dsp::MultipathFit::Result m =
+            fits_[t].fit(zwin_.data(), count, static_cast<std::size_t>(k - lo), tr.noise_at_open, tr.thr_pow, ratio2_);
+        if (m.multipath) {
+          // Move to another carrier cycle only on clear evidence: the fitted direct path lies nearer
+          // another cycle of the phase estimate, the paths found explain the window (converged) and
+          // the direct path's envelope and phase estimates agree (margin).
+          // Otherwise keep the envelope-peak choice; a disagreement still lowers the confidence.
+          const double period = 2.0 * std::numbers::pi / corr_.centroid_omega(t);
+          const double cycles = std::round((static_cast<double>(lo) + m.envelope_delay - lag) / period);
+          if (cycles != 0.0 && m.converged && m.margin >= kMinCycleMargin) lag = static_cast<double>(lo) + m.delay;
+          margin = cycles != 0.0 ? (m.converged ? m.margin : 0.5 * m.margin) : 1.0;
+        }
+      }
     }
     AudioDetection d;
     d.device = device_;
@@ -438,7 +477,8 @@ class ChirpDetector final : public Detector {
     d.sample_rate_hz = rate_;
     const double snr_db = std::min(300.0, 10.0 * std::log10(std::max(fit.value * fit.value, pk) / tr.noise_at_open));
     d.snr_db = static_cast<float>(snr_db);
-    d.confidence = static_cast<float>(std::clamp(1.0 - std::pow(10.0, -(snr_db - threshold_db_) / 10.0), 0.0, 1.0));
+    d.confidence =
+        static_cast<float>(margin * std::clamp(1.0 - std::pow(10.0, -(snr_db - threshold_db_) / 10.0), 0.0, 1.0));
     d.amplitude = static_cast<float>(std::max(fit.value, a0) / corr_.template_energy(t));
     if (!out.emit(Event{d})) ++dropped_;
     tr.allowed = k + spacing_frames_;
@@ -447,6 +487,7 @@ class ChirpDetector final : public Detector {
   static constexpr std::size_t kNoiseStride = 4;  // a multiple of every baseband decimation (4, 2)
   // Extra margin (-3 dB) of the baseband screen for noise and interference between decimated lags.
   static constexpr double kBasebandMargin = 0.5;
+  static constexpr double kMinCycleMargin = 0.3;  // multipath fit: agreement needed to change cycle
 
   Track& track(std::uint32_t c, std::size_t t) noexcept { return tracks_[c * templates_ + t]; }
 
@@ -473,6 +514,8 @@ class ChirpDetector final : public Detector {
   std::vector<float> ring_re_, ring_im_, ring_pow_;
   std::vector<std::uint8_t> ring_ok_;  // the lag passes the correlation-coefficient test
   std::vector<float> pow_, sorted_;
+  std::vector<dsp::MultipathFit> fits_;          // per template
+  std::vector<std::complex<float>> zwin_;        // the window a fit sees
   std::vector<dsp::BandPrescreen> screens_;
   std::vector<std::uint64_t> origin_;
   bool started_ = false;
@@ -490,10 +533,10 @@ Detector* create() { return new ChirpDetector(); }
 const ParamSchema& chirp_schema() {
   static const ParamSchema schema = [] {
     ParamSchema s = {
-        fspec("f0_hz", 2000.0, 1.0, 96000.0, "Hz", "Start frequency of the LFM template (TUM: 2 kHz; AMIL: 18 kHz)."),
-        fspec("f1_hz", 8000.0, 1.0, 96000.0, "Hz", "End frequency of the LFM template (TUM: 8 kHz; AMIL: 22 kHz)."),
-        fspec("duration_s", 0.040, 1e-4, 2.0, "s", "Duration of the LFM template (TUM: 40 ms; AMIL: 50 ms)."),
-        fspec("fade_s", 0.005, 0.0, 1.0, "s", "Raised-cosine fade in and out of the template (as the emitter's `fade`)."),
+        float_param("f0_hz", 2000.0, 1.0, 96000.0, "Hz", "Start frequency of the LFM template (TUM: 2 kHz; AMIL: 18 kHz)."),
+        float_param("f1_hz", 8000.0, 1.0, 96000.0, "Hz", "End frequency of the LFM template (TUM: 8 kHz; AMIL: 22 kHz)."),
+        float_param("duration_s", 0.040, 1e-4, 2.0, "s", "Duration of the LFM template (TUM: 40 ms; AMIL: 50 ms)."),
+        float_param("fade_s", 0.005, 0.0, 1.0, "s", "Raised-cosine fade in and out of the template (as the emitter's `fade`)."),
     };
     ParamSpec templates;
     templates.key = "templates";
@@ -505,17 +548,17 @@ const ParamSchema& chirp_schema() {
     templates.doc = "Several templates: flat list of f0_hz, f1_hz, duration_s, fade_s quadruples (template_index = "
                     "position); when not empty it replaces f0_hz/f1_hz/duration_s/fade_s.";
     s.push_back(std::move(templates));
-    s.push_back(fspec("threshold_db", 15.0, 3.0, 100.0, "dB",
+    s.push_back(float_param("threshold_db", 15.0, 3.0, 100.0, "dB",
                       "Detection threshold: envelope peak power of the correlation over its noise power."));
-    s.push_back(fspec("min_coefficient", 0.2, 0.0, 1.0, "",
+    s.push_back(float_param("min_coefficient", 0.2, 0.0, 1.0, "",
                       "Minimum correlation coefficient |z| / (|h| |x|) over the template length (AMIL's r): "
                       "rejects range sidelobes and cross-terms of loud chirps."));
-    s.push_back(fspec("earliest_ratio", 0.35, 0.05, 1.0, "",
+    s.push_back(float_param("earliest_ratio", 0.35, 0.05, 1.0, "",
                       "Report the earliest envelope peak >= this fraction of the strongest one in the window "
                       "(1 = the strongest only)."));
-    s.push_back(fspec("earliest_window_s", 0.010, 0.0, 1.0, "s",
+    s.push_back(float_param("earliest_window_s", 0.010, 0.0, 1.0, "s",
                       "How long after the first threshold crossing a stronger (later) path may still arrive."));
-    s.push_back(fspec("min_spacing_s", 0.1, 0.0, 60.0, "s",
+    s.push_back(float_param("min_spacing_s", 0.1, 0.0, 60.0, "s",
                       "Minimum time between two detections of one template on one channel (suppresses echoes)."));
     ParamSpec pre;
     pre.key = "prescreen";
@@ -523,7 +566,7 @@ const ParamSchema& chirp_schema() {
     pre.default_value = true;
     pre.doc = "Skip the correlation of windows without energy in the chirp's band (AMIL's FFT pre-screen).";
     s.push_back(std::move(pre));
-    s.push_back(fspec("prescreen_db", 1.0, 0.0, 60.0, "dB",
+    s.push_back(float_param("prescreen_db", 1.0, 0.0, 60.0, "dB",
                       "Pre-screen: in-band over out-of-band power per bin, above its quiet baseline, needed to correlate."));
     ParamSpec fft;
     fft.key = "fft_size";

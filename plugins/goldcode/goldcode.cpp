@@ -67,9 +67,62 @@ struct Member {
   std::int64_t at = 0;    // integer frame at which ci·g_i + cq·g_q is subtracted from the residual
 };
 
+using v4f = float __attribute__((vector_size(16)));  // GCC/Clang vectors: SSE on x86-64, NEON on the Pi
+
+// The anti-alias low-pass and decimation of the I and Q streams in one pass (the same arithmetic
+// as dsp::FirDecimator, which filters the templates offline: Σ taps[k]·x[oldest + k], outputs only
+// on the decimation grid), with the taps zero-padded in front to a multiple of 4 and 4-lane sums.
+struct IqDecimator {
+  std::vector<float> taps;   // padded length L (multiple of 4), leading zeros
+  std::vector<float> hi, hq; // 2L history, doubled so that the window is contiguous
+  std::size_t len = 0, pos = 0, factor = 1, phase = 0;
+
+  IqDecimator() = default;
+  IqDecimator(const std::vector<double>& t, std::size_t d) : factor(d) {
+    len = (t.size() + 3) / 4 * 4;
+    taps.assign(len, 0.0f);
+    for (std::size_t k = 0; k < t.size(); ++k) taps[len - t.size() + k] = static_cast<float>(t[k]);
+    hi.assign(2 * len, 0.0f);
+    hq.assign(2 * len, 0.0f);
+  }
+  void reset() noexcept {
+    std::fill(hi.begin(), hi.end(), 0.0f);
+    std::fill(hq.begin(), hq.end(), 0.0f);
+    pos = 0;
+    phase = 0;
+  }
+  void set_next_output(std::size_t k) noexcept { phase = (factor - k % factor) % factor; }
+  std::size_t process(const float* xi, const float* xq, std::size_t n, float* oi, float* oq) noexcept {
+    std::size_t produced = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      hi[pos] = hi[pos + len] = xi[i];
+      hq[pos] = hq[pos + len] = xq[i];
+      pos = pos + 1 == len ? 0 : pos + 1;
+      if (phase == 0) {
+        const float* a = hi.data() + pos;
+        const float* b = hq.data() + pos;
+        v4f si = {}, sq = {};
+        for (std::size_t k = 0; k < len; k += 4) {
+          v4f tk, ak, bk;
+          std::memcpy(&tk, taps.data() + k, sizeof tk);
+          std::memcpy(&ak, a + k, sizeof ak);
+          std::memcpy(&bk, b + k, sizeof bk);
+          si += tk * ak;
+          sq += tk * bk;
+        }
+        oi[produced] = (si[0] + si[1]) + (si[2] + si[3]);
+        oq[produced] = (sq[0] + sq[1]) + (sq[2] + sq[3]);
+        ++produced;
+      }
+      phase = phase + 1 == factor ? 0 : phase + 1;
+    }
+    return produced;
+  }
+};
+
 struct Channel {
   dsp::SosFilter bpf;
-  dsp::FirDecimator dec_i, dec_q;
+  IqDecimator dec;
   cd osc{1.0, 0.0};
   std::vector<float> ring;          // band-passed full-rate signal, indexed by frame & mask
   std::vector<float> xi, xq;        // overlap-save buffers (Nfft decimated samples)
@@ -244,8 +297,7 @@ class GoldcodeDetector final : public Detector {
     chans_.assign(channels_, Channel{});
     for (Channel& ch : chans_) {
       ch.bpf = dsp::SosFilter(sos_);
-      ch.dec_i = dsp::FirDecimator(lp_taps_, D_);
-      ch.dec_q = dsp::FirDecimator(lp_taps_, D_);
+      ch.dec = IqDecimator(lp_taps_, D_);
       ch.ring.assign(ring_size_, 0.0f);
       ch.xi.assign(nfft_, 0.0f);
       ch.xq.assign(nfft_, 0.0f);
@@ -321,12 +373,10 @@ class GoldcodeDetector final : public Detector {
  private:
   void restart(Channel& ch, std::uint64_t frame) noexcept {
     ch.bpf.reset();
-    ch.dec_i.reset();
-    ch.dec_q.reset();
+    ch.dec.reset();
     // Decimated sample m is frame m·D: the first output comes on the next frame ≡ 0 (mod D).
     const std::size_t to_grid = (D_ - frame % D_) % D_;
-    ch.dec_i.set_next_output(to_grid);
-    ch.dec_q.set_next_output(to_grid);
+    ch.dec.set_next_output(to_grid);
     // The absolute carrier phase is irrelevant (every statistic is a magnitude); it only has to be
     // continuous from here on, which the rotator guarantees.
     ch.osc = cd(1.0, 0.0);
@@ -349,18 +399,27 @@ class GoldcodeDetector final : public Detector {
     Channel& ch = chans_[c];
     if (!ch.started) restart(ch, first_frame);
     ch.bpf.process(x, bp_.data(), n);
-    cd osc = ch.osc;
-    for (std::uint32_t i = 0; i < n; ++i) {
-      const float y = bp_[i];
-      ch.ring[(first_frame + i) & ring_mask_] = y;
-      mi_[i] = static_cast<float>(y * osc.real());
-      mq_[i] = static_cast<float>(y * osc.imag());
-      osc *= rot_;
+    {  // band-passed audio → ring (at most two pieces)
+      const std::size_t at = first_frame & ring_mask_;
+      const std::size_t n1 = std::min<std::size_t>(n, ring_size_ - at);
+      std::memcpy(ch.ring.data() + at, bp_.data(), n1 * sizeof(float));
+      std::memcpy(ch.ring.data(), bp_.data() + n1, (n - n1) * sizeof(float));
     }
-    ch.osc = osc / std::abs(osc);
+    // Rotator in plain doubles (std::complex's operator* adds NaN checks), renormalised per block.
+    double o_re = ch.osc.real(), o_im = ch.osc.imag();
+    const double r_re = rot_.real(), r_im = rot_.imag();
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const double y = bp_[i];
+      mi_[i] = static_cast<float>(y * o_re);
+      mq_[i] = static_cast<float>(y * o_im);
+      const double t = o_re * r_re - o_im * r_im;
+      o_im = o_re * r_im + o_im * r_re;
+      o_re = t;
+    }
+    const double mag = std::sqrt(o_re * o_re + o_im * o_im);
+    ch.osc = cd(o_re / mag, o_im / mag);
     ch.end_frame = first_frame + n;
-    const std::size_t k = ch.dec_i.process(mi_.data(), n, di_.data());
-    ch.dec_q.process(mq_.data(), n, dq_.data());
+    const std::size_t k = ch.dec.process(mi_.data(), mq_.data(), n, di_.data(), dq_.data());
     for (std::size_t i = 0; i < k; ++i) {
       ch.xi[ch.fill] = di_[i];
       ch.xq[ch.fill] = dq_[i];
@@ -485,7 +544,6 @@ class GoldcodeDetector final : public Detector {
   // Kernels of the refinement, on GCC/Clang vector extensions (SSE on x86-64, NEON on the Pi; no
   // -ffast-math needed): 8 float lanes per accumulator, the 8 partial sums added in double (relative
   // error ~1e-6, plenty for a peak search and least-squares amplitudes).
-  using v4f = float __attribute__((vector_size(16)));
   static v4f load4(const float* p) noexcept {
     v4f v;
     std::memcpy(&v, p, sizeof v);

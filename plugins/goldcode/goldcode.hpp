@@ -18,9 +18,11 @@
 //      true peak can be lower than a strong user's cross-correlation sidelobe);
 //   6. joint refinement at the full rate (successive interference cancellation): for the peak and
 //      every other code whose emission overlaps it (open candidates and recent detections),
-//      strongest first, 2 rounds: subtract the others' current reconstructions, search the envelope
-//      of the analytic matched filter (band-passed template + its Hilbert transform) over
-//      ±(D/2 + 3) frames, parabolic interpolation, least-squares in-phase/quadrature amplitudes.
+//      strongest first, 2 rounds: subtract the others' current reconstructions, hill-climb the
+//      envelope of the analytic matched filter (band-passed template + its Hilbert transform) from
+//      the estimate within ±(D/2 + 3) frames (±1 once refined), parabolic interpolation,
+//      least-squares in-phase/quadrature amplitudes. A residual > 60 dB below the audio counts as
+//      empty (refined Pearson 0: only the others' float rounding is left).
 //      The refined Pearson coefficient of the residual with the template picks among the kept
 //      peaks and must reach min_pearson: cross-correlation sidelobes fall to ~0.05 once the user
 //      that caused them is subtracted, true users stay at 0.7..1 (measured in the tests).

@@ -48,6 +48,7 @@ for d in dets:
         if best is None or abs(e) < abs(best): best = e
     errs.append((dev, best))
 e = np.array([x[1] for x in errs])
-print(f"{len(e)} detections; error vs truth (samples): mean {e.mean():+.3f} rms {np.sqrt((e**2).mean()):.3f} max|e| {np.abs(e).max():.3f}")
+print(f"{len(e)} detections; error vs truth (samples): mean {e.mean():+.3f} rms {np.sqrt((e**2).mean()):.3f} "
+      f"max|e| {np.abs(e).max():.3f}; |e| <= 0.05: {(np.abs(e) <= 0.05).sum()}, |e| > 1 (cycle slips): {(np.abs(e) > 1).sum()}")
 for dev in sorted(set(x[0] for x in errs)):
     v = np.array([x[1] for x in errs if x[0]==dev]); print(f"  {dev:7s} n={len(v)} mean {v.mean():+.3f} sd {v.std():.3f}")

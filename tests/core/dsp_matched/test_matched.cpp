@@ -119,6 +119,61 @@ TEST(Correlator, AnalyticOutputIsTheQuadratureOfATone) {
   EXPECT_NEAR(c.centroid_omega(0), w, 0.02);
 }
 
+/// Uses FftPlanner's default plan_complex (two real transforms) instead of FFTW's native one.
+struct RealOnlyPlanner final : FftPlanner {
+  FftwPlanner inner{"", false};
+  std::unique_ptr<RealFft> plan_real(std::size_t n) override { return inner.plan_real(n); }
+};
+
+TEST(Correlator, BasebandOutputIsTheDecimatedAnalyticOutput) {
+  // A Hann-windowed 2-8 kHz sweep at 44.1 kHz in noise: the baseband output at every D-th lag must
+  // match the full-rate analytic output, with FFTW's complex FFT and with the default one.
+  const double fs = 44100.0;
+  std::vector<float> h(1000);
+  for (std::size_t j = 0; j < h.size(); ++j) {
+    const double t = double(j) / fs, dur = double(h.size()) / fs;
+    const double ph = 2 * std::numbers::pi * (2000.0 * t + 0.5 * (6000.0 / dur) * t * t);
+    h[j] = float(std::cos(ph) * 0.5 * (1 - std::cos(2 * std::numbers::pi * double(j) / double(h.size() - 1))));
+  }
+  std::vector<float> x = noise(20000, 7, 0.3);
+  for (std::size_t j = 0; j < h.size(); ++j) x[5000 + j] += h[j];
+  FftwPlanner fftw("", false);
+  RealOnlyPlanner real_only;
+  for (FftPlanner* planner : {static_cast<FftPlanner*>(&fftw), static_cast<FftPlanner*>(&real_only)}) {
+    Correlator c;
+    Correlator::Options opt{1, 4096, true};
+    opt.baseband = true;
+    c.configure({h}, *planner, opt);
+    const std::size_t d = c.baseband_decimation(0);
+    ASSERT_EQ(d, 4u);  // 2-8 kHz (+ skirts) fits in N/4 bins = 11 kHz
+    EXPECT_GT(c.baseband_peak_ratio(0), 0.5);
+    EXPECT_LE(c.baseband_peak_ratio(0), 1.0);
+    double peak = 0, worst = 0, worst_lag = 0;
+    std::size_t pos = 0, windows = 0;
+    while (pos < x.size()) {
+      pos += c.push(0, x.data() + pos, x.size() - pos);
+      if (!c.full(0)) break;
+      c.transform(0);
+      c.correlate(0);
+      c.correlate_baseband(0);
+      for (std::size_t i = 0; i < c.hop(); ++i) peak = std::max(peak, double(std::hypot(c.real(0)[i], c.imag(0)[i])));
+      for (std::size_t m = 0; m * d < c.hop(); ++m) {
+        const double full = std::hypot(c.real(0)[m * d], c.imag(0)[m * d]);
+        worst = std::max(worst, std::abs(std::abs(std::complex<double>(c.baseband(0)[m])) - full));
+      }
+      for (std::size_t i : {std::size_t{0}, std::size_t{1}, std::size_t{777}, c.hop() - 1}) {
+        const std::complex<double> z = c.baseband_lag(0, i);
+        worst_lag = std::max(worst_lag, std::abs(z - std::complex<double>(c.real(0)[i], c.imag(0)[i])));
+      }
+      c.advance(0);
+      ++windows;
+    }
+    EXPECT_GE(windows, 5u);
+    EXPECT_LT(worst, 1e-2 * peak);
+    EXPECT_LT(worst_lag, 1e-2 * peak);
+  }
+}
+
 TEST(Correlator, RejectsBadSetups) {
   FftwPlanner planner("", false);
   Correlator c;

@@ -254,6 +254,65 @@ TEST(ChirpDetector, LaterStrongerEchoDoesNotHideTheDirectPath) {
   EXPECT_EQ(s2.n, 0u);
 }
 
+/// Direct paths (amplitude 1) each followed by one reflection of amplitude in [amp_lo, amp_hi] and a
+/// random sign, delayed by [delay_lo, delay_hi] samples, at 18-22 kHz, `snr_db` for the direct path.
+Stats reflection_case(double delay_lo, double delay_hi, double amp_lo, double amp_hi, double snr_db, unsigned seed,
+                      std::size_t* cycle_slips, double* mean_confidence = nullptr) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<Emission> direct, all;
+  for (int i = 0; i < 40; ++i) {
+    const double t0 = 0.05 * kFs + i * 0.15 * kFs + 100 * u(rng) + u(rng);
+    const double a = (amp_lo + (amp_hi - amp_lo) * u(rng)) * (u(rng) < 0.5 ? -1.0 : 1.0);
+    direct.push_back({0, t0, 1.0, 0});
+    all.push_back({0, t0, 1.0, 0});
+    all.push_back({0, t0 + delay_lo + (delay_hi - delay_lo) * u(rng), a, 0});
+  }
+  const double sigma = std::sqrt(chirp_power(kAmil) / std::pow(10.0, snr_db / 10.0));
+  const auto x = render(1, static_cast<std::size_t>(6.2 * kFs), {kAmil}, all, sigma, seed + 100);
+  Harness h(1, {{"f0_hz", 18000.0}, {"f1_hz", 22000.0}, {"duration_s", 0.05}});
+  const auto dets = h.run(x, 512);
+  const Stats s = match(dets, direct, 5.0);
+  std::size_t slips = 0;
+  double conf = 0;
+  for (const auto& d : dets) {
+    conf += d.confidence;
+    for (const Emission& e : direct)
+      if (std::abs(d.frame - e.start_frame) < 5.0 && std::abs(d.frame - e.start_frame) > 1.0) ++slips;
+  }
+  if (cycle_slips) *cycle_slips = slips;
+  if (mean_confidence) *mean_confidence = dets.empty() ? 0.0 : conf / double(dets.size());
+  return s;
+}
+
+TEST(ChirpDetector, ReflectionsWithinTwoMainlobesDoNotSlipTheCarrierCycle) {
+  // A room: side-wall / floor reflections 12-30 samples after the direct path (their mainlobe skirts
+  // and first range sidelobes overlap the direct peak), 0.5-0.9 of its amplitude, 40 dB SNR. Without
+  // the multipath fit the composite envelope peak moves by > half a carrier cycle (1.1 samples at
+  // 20 kHz) and the phase snaps to the neighbouring cycle (errors of +-2.2 samples).
+  std::size_t slips = 0;
+  double conf = 0;
+  const Stats s = reflection_case(12.0, 30.0, 0.5, 0.9, 40.0, 21, &slips, &conf);
+  std::printf("[ chirp    ] reflection +12..30 samples, 0.5-0.9, 40 dB: %zu/40 found, %zu slips, rms %.4f max %.3f, conf %.3f\n",
+              s.n, slips, s.rms, s.maxabs, conf);
+  EXPECT_EQ(s.missed, 0u);
+  EXPECT_EQ(s.extra, 0u);
+  EXPECT_EQ(slips, 0u);
+  EXPECT_LT(s.rms, 0.1);
+}
+
+TEST(ChirpDetector, ReflectionsInsideTheMainlobeAreResolvedOrFlagged) {
+  // 2-10 samples (inside one mainlobe, fs/B = 11 samples): not fully separable. Measured, bounded:
+  // most detections keep the right cycle and a slip costs confidence.
+  std::size_t slips = 0;
+  double conf = 0;
+  const Stats s = reflection_case(2.0, 10.0, 0.5, 0.9, 40.0, 22, &slips, &conf);
+  std::printf("[ chirp    ] reflection +2..10 samples, 0.5-0.9, 40 dB: %zu/40 found, %zu slips, rms %.4f max %.3f, conf %.3f\n",
+              s.n, slips, s.rms, s.maxabs, conf);
+  EXPECT_EQ(s.missed, 0u);
+  EXPECT_LE(slips, 4u);
+}
+
 TEST(ChirpDetector, SidelobesOfASinglePathAreNotReportedAsEarlierPaths) {
   // One strong path at 40 dB: its range sidelobes cross the threshold well before the mainlobe, but
   // stay under earliest_ratio, so the detection is the mainlobe itself.
