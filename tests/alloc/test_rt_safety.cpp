@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "locus/audio_ring.hpp"
+#include "locus/dsp/signals.hpp"
 #include "locus/event_bus.hpp"
 #include "locus/fftw_planner.hpp"
 #include "locus/pipeline.hpp"
@@ -364,4 +365,80 @@ TEST(RtSafety, SensorDeliveryDoesNotAllocateOrLock) {
 }
 
 }  // namespace
+
+// The chirp detector's multipath branch (dsp::MultipathFit) runs only when a reflection distorts the
+// correlation peak, which the generic noise-and-tone stream above does not produce: AMIL beeps with a
+// reflection 12-30 samples after the direct path (the case that made the fit necessary).
+TEST(RtSafety, ChirpMultipathFitDoesNotAllocateOrLock) {
+  Registry registry;
+  register_builtins(registry);
+  test::TestHost host;
+  FftwPlanner fftw({}, /*measure=*/false);
+  const locus_plugin_descriptor* d = registry.find_plugin("chirp");
+  ASSERT_NE(d, nullptr);
+  Params params = Params::defaults(*d->schema());
+  params.set("f0_hz", 18000.0);
+  params.set("f1_hz", 22000.0);
+  params.set("duration_s", 0.05);
+  params.set("fade_s", 0.005);
+  constexpr std::uint32_t kBlock = 256;
+  constexpr double kFs = 44100.0;
+  StreamInfo info;
+  info.device = "A";
+  info.channels = 1;
+  info.sample_rate_hz = kFs;
+  info.max_block_frames = kBlock;
+  auto detector = registry.create_detector("chirp");
+  HostContext ctx{host.log, host.clock, fftw, host.link, "chirp", "A"};
+  detector->configure(info, params, ctx);
+
+  dsp::SignalSpec beep;
+  beep.type = "lfm";
+  beep.f0_hz = 18000;
+  beep.f1_hz = 22000;
+  beep.duration_s = 0.05;
+  beep.fade_s = 0.005;
+  const dsp::SignalEvaluator eval(beep, kFs);
+  // 12 beeps 0.5 s apart, each with a reflection (gain 0.5..0.9, sign alternating) 12..30 samples later.
+  constexpr std::size_t kBeeps = 12, kPeriod = 22050;
+  std::vector<float> audio(kBeeps * kPeriod + 4096);
+  std::uint32_t seed = 777;
+  for (std::size_t n = 0; n < audio.size(); ++n) {
+    seed = seed * 1664525u + 1013904223u;
+    audio[n] = 1e-3f * (static_cast<float>(seed >> 8) / 16777216.0f - 0.5f);
+  }
+  for (std::size_t b = 0; b < kBeeps; ++b) {
+    const double start = 2000.0 + static_cast<double>(b * kPeriod) + 0.37 * static_cast<double>(b % 3);
+    const double echo_delay = 12.0 + 1.5 * static_cast<double>(b);
+    const double echo_gain = (b % 2 ? -1.0 : 1.0) * (0.5 + 0.035 * static_cast<double>(b));
+    for (std::size_t n = 0; n < 2400; ++n) {
+      const double k = std::floor(start) + static_cast<double>(n);
+      audio[static_cast<std::size_t>(k)] += static_cast<float>(
+          0.3 * (eval.value((k - start) / kFs) + echo_gain * eval.value((k - start - echo_delay) / kFs)));
+    }
+  }
+  test::CollectingSink sink(1 << 12);
+  const float* chan[1];
+  AudioBlock block;
+  block.channel_data = chan;
+  block.channels = 1;
+  // Warm-up on the first beep, then the measured section over the rest.
+  std::size_t pos = 0;
+  auto step = [&] {
+    chan[0] = audio.data() + pos;
+    block.frames = kBlock;
+    block.first_frame = pos;
+    detector->process_audio(block, sink);
+    pos += kBlock;
+  };
+  while (pos + kBlock <= kPeriod) step();
+  RtSection rt;
+  while (pos + kBlock <= audio.size()) step();
+  const long allocs = rt.allocs(), frees = rt.frees(), locks = rt.locks();
+  EXPECT_EQ(allocs, 0);
+  EXPECT_EQ(frees, 0);
+  EXPECT_EQ(locks, 0);
+  EXPECT_GE(sink.events.size(), kBeeps - 1) << "the beeps must be detected for the test to mean anything";
+}
+
 }  // namespace locus
