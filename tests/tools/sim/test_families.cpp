@@ -143,7 +143,8 @@ TEST(SimFamilies, AmilLayoutAndBeepsFollowThePaper) {
     EXPECT_LT(tr.velocity(t).norm(), 0.01);
     EXPECT_LT(tr.velocity(t + 0.05).norm(), 0.01);
   }
-  const auto corner = [&](std::size_t k) {
+  // Returns a Vector2d, not an Eigen expression: the expression would refer to the temporary pose.
+  const auto corner = [&](std::size_t k) -> Eigen::Vector2d {
     return (tr.pose(s1.emissions[k].t_start_true_s()).position_m - p0).head<2>();
   };
   EXPECT_LT((corner(1) - Eigen::Vector2d(-0.305, 0)).norm(), 2e-3);
