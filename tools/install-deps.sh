@@ -9,10 +9,16 @@ PACKAGES=(
   # design card libraries
   libasound2-dev libasound2-plugins libjack-jackd2-dev jackd2 libeigen3-dev libfftw3-dev
   libyaml-cpp-dev libbluetooth-dev
+  # HAL backends: BlueZ over D-Bus (sdbus-c++ needs libsystemd-dev for pkg-config), MQTT link
+  libsdbus-c++-dev libsystemd-dev libmosquitto-dev
   # well-kept libraries for what is not our business
   libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev libsndfile1-dev libboost-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev valgrind
+  # real components the integration tests start themselves (docs: ../shared/docs/real-components.md)
+  dbus python3-dbusmock mosquitto mosquitto-clients sox
+  # TLS certificates for the MQTT TLS test (tests/integration/mqtt)
+  openssl
   # reference checks and plots (never runtime dependencies of the service)
   python3-numpy python3-scipy python3-matplotlib python3-yaml
 )

@@ -13,6 +13,8 @@
 
 #include "support/test_host.hpp"
 #include "locus/config.hpp"
+#include "locus/playback.hpp"
+#include "locus/registry.hpp"
 
 namespace locus {
 namespace {
@@ -628,6 +630,94 @@ TEST(ConfigValidateParams, ReportsEveryProblemByKey) {
   validate_params(*xcorr_schema(), {}, errors);
   ASSERT_EQ(errors.size(), 1u);
   EXPECT_EQ(errors[0].format(), "template_hz: missing required key 'template_hz'");
+}
+
+// ------------------------------------------------------------------------------ playback, geometry, link, outputs
+
+class NullSink : public AudioSink {
+ public:
+  void open(const Params&, HostContext&) override {}
+  std::uint32_t channels() const override { return 1; }
+  double sample_rate_hz() const override { return 44100.0; }
+  void start(PlaybackScheduler&) override {}
+  void stop() override {}
+};
+
+class NullOutput : public EventOutput {
+ public:
+  void write(const Event&) override {}
+};
+
+class ConfigSectionsTest : public ConfigTest {
+ protected:
+  ConfigSectionsTest() {
+    registry.add_sink(SinkDescriptor{"speaker", "test sink", {int_param("period_frames", std::int64_t{256}, 16, 8192, "", "")},
+                                     [] { return std::make_unique<NullSink>(); }});
+    registry.add_link(LinkDescriptor{"wire", "test link", {string_param("host", std::string("localhost"), "")},
+                                     [](const Params&, Logger&) -> std::unique_ptr<Link> { return nullptr; }});
+    registry.add_output(OutputDescriptor{"tap", "test output", {},
+                                         [](const Params&, Logger&) { return std::make_unique<NullOutput>(); }});
+  }
+};
+
+TEST_F(ConfigSectionsTest, AcceptsPlaybackGeometryLinkAndOutputs) {
+  const Config c = load_config_string(R"(link: {type: wire, params: {host: broker}}
+outputs:
+  - type: tap
+    events: [estimate, step]
+devices:
+  - id: A
+    playback: {sink: speaker, max_pending: 8, params: {period_frames: 512}}
+    geometry: {mics_m: [0, 0, 0, 0.07, 0, 0], speaker_m: [0, 0.1, 0]}
+)",
+                                      "test.yaml", registry);
+  ASSERT_TRUE(c.link);
+  EXPECT_EQ(c.link->type, "wire");
+  EXPECT_EQ(c.link->params.get_string("host"), "broker");
+  ASSERT_EQ(c.outputs.size(), 1u);
+  EXPECT_EQ(c.outputs[0].events, (std::vector<EventType>{EventType::Estimate, EventType::Step}));
+  ASSERT_TRUE(c.devices[0].playback);
+  EXPECT_EQ(c.devices[0].playback->sink, "speaker");
+  EXPECT_EQ(c.devices[0].playback->max_pending, 8u);
+  EXPECT_EQ(c.devices[0].playback->params.get_int("period_frames"), 512);
+  ASSERT_TRUE(c.devices[0].geometry);
+  ASSERT_EQ(c.devices[0].geometry->mics_m.size(), 2u);
+  EXPECT_DOUBLE_EQ(c.devices[0].geometry->mics_m[1][0], 0.07);
+  ASSERT_TRUE(c.devices[0].geometry->speaker_m);
+  EXPECT_FALSE(c.devices[0].geometry->anchor_m);
+}
+
+TEST_F(ConfigSectionsTest, ReportsEveryBadSectionWithItsPlace) {
+  const auto errs = errors(R"(link: {type: wir}
+outputs:
+  - type: tap
+    events: [estimat]
+devices:
+  - id: A
+    playback: {sink: speaker, params: {period_frames: 1}}
+    geometry: {mics_m: [0, 0, 0, 1], anchor_m: [1, 2]}
+)");
+  ASSERT_EQ(errs.size(), 5u);
+  EXPECT_EQ(errs[0].key, "link.type");
+  EXPECT_NE(errs[0].message.find("unknown link 'wir'; did you mean 'wire'?"), std::string::npos) << errs[0].message;
+  EXPECT_EQ(errs[1].key, "outputs[0].events[0]");
+  EXPECT_EQ(errs[1].line, 4);
+  EXPECT_EQ(errs[2].key, "devices[0].playback.params.period_frames");
+  EXPECT_EQ(errs[2].line, 7);
+  EXPECT_EQ(errs[3].key, "devices[0].geometry.mics_m");
+  EXPECT_NE(errs[3].message.find("multiple of 3"), std::string::npos) << errs[3].message;
+  EXPECT_EQ(errs[4].key, "devices[0].geometry.anchor_m");
+}
+
+TEST_F(ConfigSectionsTest, MissingNamesAreReported) {
+  const auto errs = errors(R"(link: {params: {}}
+devices:
+  - id: A
+    playback: {}
+)");
+  ASSERT_EQ(errs.size(), 2u);
+  EXPECT_EQ(errs[0].message, "missing required key 'type'");
+  EXPECT_EQ(errs[1].message, "missing required key 'sink'");
 }
 
 }  // namespace

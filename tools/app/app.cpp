@@ -175,6 +175,21 @@ int list_plugins(const std::vector<std::string>& plugin_dirs, bool json) {
   }
   if (json) {
     nlohmann::json out{{"plugins", nlohmann::json::array()}, {"sources", nlohmann::json::array()}};
+    // Host-side backends other than audio sources, one array each, same shape as "sources".
+    auto add_named = [&](const char* key, const auto& list, auto&& extra) {
+      out[key] = nlohmann::json::array();
+      for (const auto& s : list) {
+        nlohmann::json j{{"name", s.name}, {"description", s.description}, {"params", schema_json(s.schema)}};
+        extra(j, s);
+        out[key].push_back(std::move(j));
+      }
+    };
+    const auto none = [](nlohmann::json&, const auto&) {};
+    add_named("sensor_sources", registry.sensor_sources(),
+              [](nlohmann::json& j, const SensorSourceDescriptor& s) { j["kind"] = sensor_kind_name(s.kind); });
+    add_named("sinks", registry.sinks(), none);
+    add_named("links", registry.links(), none);
+    add_named("outputs", registry.outputs(), none);
     for (const auto& entry : registry.plugins()) {
       const auto* d = entry.descriptor;
       out["plugins"].push_back({{"name", d->name}, {"kind", kind_name(d->kind)}, {"version", d->version},
@@ -193,10 +208,20 @@ int list_plugins(const std::vector<std::string>& plugin_dirs, bool json) {
     if (d->description) std::cout << "    " << d->description << "\n";
     print_schema(*d->schema());
   }
-  for (const auto& s : registry.sources()) {
-    std::cout << s.name << " source built-in\n    " << s.description << "\n";
+  auto print_named = [](const auto& list, const std::string& what) {
+    for (const auto& s : list) {
+      std::cout << s.name << " " << what << " built-in\n    " << s.description << "\n";
+      print_schema(s.schema);
+    }
+  };
+  print_named(registry.sources(), "source");
+  for (const auto& s : registry.sensor_sources()) {
+    std::cout << s.name << " " << sensor_kind_name(s.kind) << "-source built-in\n    " << s.description << "\n";
     print_schema(s.schema);
   }
+  print_named(registry.sinks(), "playback-sink");
+  print_named(registry.links(), "link");
+  print_named(registry.outputs(), "output");
   return status;
 }
 

@@ -6,7 +6,9 @@
 #include "locus/plugin.hpp"
 #include "subcommand.hpp"
 // Tool modules (tools/<name>/cli.hpp): one include and one line in `modules` below each.
+#include "devices/cli.hpp"
 #include "eval/cli.hpp"
+#include "record/cli.hpp"
 #include "replay/cli.hpp"
 #include "sim/cli.hpp"
 
@@ -31,7 +33,9 @@ int main(int argc, char** argv) {
   auto* version = cli.add_subcommand("version", "print the version and plugin ABI");
 
   std::vector<locus::app::Subcommand> modules = {
+      locus::app::add_devices_command(cli),
       locus::app::add_eval_command(cli),
+      locus::app::add_record_command(cli),
       locus::app::add_replay_command(cli),
       locus::app::add_simulate_command(cli),
   };

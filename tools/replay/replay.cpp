@@ -23,40 +23,6 @@ namespace locus::app {
 
 namespace {
 
-/// The device's `emits` as JSON with the field names of scene-format.md.
-std::string emits_json(const std::vector<dsp::SignalSpec>& emits) {
-  nlohmann::ordered_json out = nlohmann::ordered_json::array();
-  for (const dsp::SignalSpec& s : emits) {
-    nlohmann::ordered_json j{{"type", s.type}};
-    if (s.type == "lfm") {
-      j["f0"] = s.f0_hz;
-      j["f1"] = s.f1_hz;
-      j["duration"] = s.duration_s;
-      j["fade"] = s.fade_s;
-      j["amplitude"] = s.amplitude;
-    } else if (s.type == "multitone") {
-      j["tones_hz"] = s.tones_hz;
-      j["duration"] = s.duration_s;
-      j["fade"] = s.fade_s;
-      j["amplitude"] = s.amplitude;
-    } else if (s.type == "gold") {
-      j["degree"] = s.degree;
-      j["index"] = s.index;
-      j["carrier"] = s.carrier_hz;
-      j["chip_samples"] = s.chip_samples;
-      j["amplitude"] = s.amplitude;
-      if (!s.chips.empty()) j["chips"] = s.chips;
-    } else if (s.type == "ble") {
-      j["address"] = s.address;
-      j["tx_power_dbm"] = s.tx_power_dbm;
-      j["interval_s"] = s.interval_s;
-    }
-    if (s.sync_delay_s) j["sync_delay_s"] = *s.sync_delay_s;
-    out.push_back(std::move(j));
-  }
-  return out.dump();
-}
-
 /// Params for a scene source (validated against its schema like a config section).
 Params scene_params(const Registry& registry, const std::string& source, bool sensor, const std::string& scene_dir,
                     const std::string& device, const std::string& speed) {
@@ -150,7 +116,7 @@ GeometrySpec geometry_of(const scene::DeviceSpec& spec) {
     g.geometry.has_anchor = true;
     g.geometry.anchor_m = *spec.anchor_position_m;
   }
-  g.emits_json = emits_json(spec.emits);
+  g.emits_json = scene::signals_to_json(spec.emits);
   return g;
 }
 

@@ -6,6 +6,7 @@
 // with file:line:column, the key path and what was expected. docs/config.md is the reference.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <stdexcept>
@@ -61,6 +62,34 @@ struct SensorConfig {
   std::uint32_t queue_capacity = 4096;   ///< events the hand-over queue holds (rounded up to a power of two)
 };
 
+/// A device's speaker output (`playback:` section): the HAL sink its Emitter plays through.
+struct PlaybackConfig {
+  std::string sink;                  ///< registry name of the playback sink ("alsa", "jack")
+  Params params;                     ///< validated against the sink's schema
+  std::uint32_t max_pending = 64;    ///< emissions queued or playing at once
+};
+
+/// Where a live device's microphones, speaker and position are (`geometry:` section): what replay
+/// takes from scene.yaml. Body frame (Android convention) for mics and speaker, world for the anchor.
+struct GeometryConfig {
+  std::vector<std::array<double, 3>> mics_m;     ///< one per audio channel, channel order
+  std::optional<std::array<double, 3>> speaker_m;
+  std::optional<std::array<double, 3>> anchor_m;
+};
+
+/// How the node's localizers reach other nodes (`link:` section); absent = in-process.
+struct LinkConfig {
+  std::string type;  ///< registry name of the link ("mqtt")
+  Params params;
+};
+
+/// One extra event output (`outputs:` list entry), e.g. estimates to MQTT.
+struct EventOutputConfig {
+  std::string type;  ///< registry name of the output ("mqtt")
+  std::vector<EventType> events{EventType::Estimate};
+  Params params;
+};
+
 /// Id of the template device entry (`id: "*"`): used by `locus replay` for every scene device without
 /// an entry of its own; a node run (`locusd`, `locus run`) does not instantiate it.
 inline constexpr std::string_view kTemplateDeviceId = "*";
@@ -71,6 +100,8 @@ struct DeviceConfig {
   std::optional<SensorConfig> imu;
   std::optional<SensorConfig> ble;
   std::optional<SensorConfig> sync;
+  std::optional<PlaybackConfig> playback;
+  std::optional<GeometryConfig> geometry;
   std::vector<ComponentConfig> detectors;
 
   bool is_template() const noexcept { return id == kTemplateDeviceId; }
@@ -94,6 +125,8 @@ struct Config {
   LogLevel log_level = LogLevel::Info;
   std::vector<std::string> plugin_dirs;  ///< resolved relative to the config file's directory
   OutputConfig output;
+  std::optional<LinkConfig> link;
+  std::vector<EventOutputConfig> outputs;
   std::vector<DeviceConfig> devices;
   std::vector<ComponentConfig> localizers;
 };

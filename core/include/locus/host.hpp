@@ -8,6 +8,7 @@
 #include <string>
 #include <string_view>
 
+#include "locus/emitter.hpp"
 #include "locus/events.hpp"
 #include "locus/fft.hpp"
 #include "locus/link.hpp"
@@ -73,6 +74,9 @@ struct HostContext {
   std::string_view device;     ///< the device this instance serves ("" for node-wide localizers)
   /// Geometry of `device` when the host knows it (replay), else nullptr. See DeviceGeometry.
   const DeviceGeometry* geometry = nullptr;
+  /// The device's emitter when it has a `playback:` section (a live node), else nullptr (replay: the
+  /// scene already holds what was played). See emitter.hpp.
+  Emitter* emitter = nullptr;
 };
 
 }  // namespace locus

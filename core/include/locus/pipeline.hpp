@@ -1,5 +1,6 @@
 // The node pipeline built from a validated Config: per device an audio source (HAL) feeding an
-// AudioRing and optional sensor sources (imu, ble, sync) feeding SensorQueues, a detector thread that
+// AudioRing, optional sensor sources (imu, ble, sync) feeding SensorQueues, an optional playback sink
+// fed by a PlaybackScheduler (the device's Emitter, HostContext::emitter), a detector thread that
 // merges the device's streams by local time and runs its detectors, and one event bus whose dispatcher
 // thread feeds the localizers and the JSON-lines sink.
 //
@@ -37,6 +38,8 @@
 #include "locus/config.hpp"
 #include "locus/detector.hpp"
 #include "locus/event_bus.hpp"
+#include "locus/event_output.hpp"
+#include "locus/playback.hpp"
 #include "locus/registry.hpp"
 #include "locus/sensor_source.hpp"
 
@@ -134,7 +137,10 @@ struct DeviceStats {
   std::uint64_t events_dropped = 0;
   std::uint64_t sensor_events = 0;   ///< sensor events delivered (all streams)
   std::uint64_t sensor_dropped = 0;  ///< sensor events live sources dropped (full queue)
-  std::string source_error;          ///< first error of the device's sources ("imu source: ..." for sensors)
+  std::uint64_t playback_xruns = 0;  ///< underruns of the playback sink
+  std::uint64_t late_emissions = 0;  ///< emissions cut or refused (Emitter::late_emissions)
+  std::string source_error;          ///< first error of the device's sources ("imu source: ..." for sensors,
+                                     ///< "playback: ..." for the sink)
 };
 
 /// The geometry a pipeline hands to the plugins of one device (DeviceGeometry::emits_json points into
@@ -154,7 +160,8 @@ struct PipelineOptions {
   bool write_output = true;
   /// HostContext::device of the localizers ("" = node-wide). Replay: the node's device id.
   std::string localizer_device;
-  /// Per device id; plugins of a device listed here get HostContext::geometry.
+  /// Per device id; plugins of a device listed here get HostContext::geometry. A device not listed
+  /// here whose config has a `geometry:` section gets that one.
   std::map<std::string, GeometrySpec> geometry;
 };
 
@@ -205,7 +212,8 @@ class Pipeline {
   Registry& registry_;
   PipelineOptions options_;
   EventBus bus_;
-  std::unique_ptr<Link> own_link_;  // when options_.link is nullptr
+  std::unique_ptr<Link> own_link_;  // when options_.link is nullptr: config.link's type, else in-process
+  class InProcessLink* own_inprocess_ = nullptr;  // own_link_ when it is in-process (settle() flushes it)
   Link* link_ = nullptr;
   std::unique_ptr<Link> dispatched_link_;
   std::unique_ptr<FftPlanner> fft_;
@@ -213,6 +221,9 @@ class Pipeline {
   std::vector<std::unique_ptr<Device>> devices_;
   std::vector<std::unique_ptr<LocalizerInstance>> localizers_;
   std::unique_ptr<class JsonLinesWriter> writer_;
+  std::vector<std::unique_ptr<EventOutput>> outputs_;  // config.outputs
+  std::vector<std::unique_ptr<class SpdLogger>> output_logs_;
+  std::unique_ptr<class SpdLogger> link_log_;
   std::unique_ptr<Publisher> publisher_;
   bool started_ = false;
   bool inputs_stopped_ = false;

@@ -13,6 +13,8 @@
 #include <vector>
 
 #include "locus/audio_source.hpp"
+#include "locus/event_output.hpp"
+#include "locus/playback.hpp"
 #include "locus/plugin.hpp"
 #include "locus/sensor_source.hpp"
 
@@ -33,6 +35,32 @@ struct SensorSourceDescriptor {
   SensorKind kind = SensorKind::Imu;  ///< what it produces: the config section it may appear in
   ParamSchema schema;
   std::function<std::unique_ptr<SensorSource>()> create;
+};
+
+/// A HAL playback backend type (`playback:` section of a device; built in).
+struct SinkDescriptor {
+  std::string name;
+  std::string description;
+  ParamSchema schema;
+  std::function<std::unique_ptr<AudioSink>()> create;
+};
+
+/// A link type (`link:` section of a node: how its localizers reach other nodes; built in).
+/// `create` gets the validated params and the node's logger; throws std::runtime_error naming what
+/// failed (e.g. the broker refused the credentials).
+struct LinkDescriptor {
+  std::string name;
+  std::string description;
+  ParamSchema schema;
+  std::function<std::unique_ptr<Link>(const Params&, Logger&)> create;
+};
+
+/// An extra event output (`outputs:` list of a node, besides the JSON-lines `output:`; built in).
+struct OutputDescriptor {
+  std::string name;
+  std::string description;
+  ParamSchema schema;
+  std::function<std::unique_ptr<EventOutput>(const Params&, Logger&)> create;
 };
 
 /// A plugin library could not be loaded or one of its descriptors is invalid. what() names the file
@@ -62,6 +90,11 @@ class Registry {
   /// a duplicate name (sensor source names are unique across kinds).
   void add_sensor_source(SensorSourceDescriptor source);
 
+  /// Adds a playback backend / link type / event output. Throw std::invalid_argument like add_source.
+  void add_sink(SinkDescriptor sink);
+  void add_link(LinkDescriptor link);
+  void add_output(OutputDescriptor output);
+
   /// dlopens `path` and adds every descriptor it enumerates. Throws PluginLoadError (nothing from a
   /// refused library is added). Returns the names added.
   std::vector<std::string> load_library(const std::string& path);
@@ -73,6 +106,9 @@ class Registry {
   const locus_plugin_descriptor* find_plugin(std::string_view name) const;
   const SourceDescriptor* find_source(std::string_view name) const;
   const SensorSourceDescriptor* find_sensor_source(std::string_view name) const;
+  const SinkDescriptor* find_sink(std::string_view name) const;
+  const LinkDescriptor* find_link(std::string_view name) const;
+  const OutputDescriptor* find_output(std::string_view name) const;
 
   struct PluginEntry {
     const locus_plugin_descriptor* descriptor;
@@ -81,6 +117,9 @@ class Registry {
   const std::vector<PluginEntry>& plugins() const noexcept { return plugins_; }
   const std::vector<SourceDescriptor>& sources() const noexcept { return sources_; }
   const std::vector<SensorSourceDescriptor>& sensor_sources() const noexcept { return sensor_sources_; }
+  const std::vector<SinkDescriptor>& sinks() const noexcept { return sinks_; }
+  const std::vector<LinkDescriptor>& links() const noexcept { return links_; }
+  const std::vector<OutputDescriptor>& outputs() const noexcept { return outputs_; }
 
   std::unique_ptr<Detector> create_detector(std::string_view name) const;    ///< throws if absent/not a detector
   std::unique_ptr<Localizer> create_localizer(std::string_view name) const;  ///< throws if absent/not a localizer
@@ -91,6 +130,9 @@ class Registry {
   std::vector<PluginEntry> plugins_;
   std::vector<SourceDescriptor> sources_;
   std::vector<SensorSourceDescriptor> sensor_sources_;
+  std::vector<SinkDescriptor> sinks_;
+  std::vector<LinkDescriptor> links_;
+  std::vector<OutputDescriptor> outputs_;
   std::vector<void*> libraries_;  // dlopen handles, closed in the destructor after instances are gone
 };
 

@@ -272,10 +272,26 @@ class Checker {
 
 // ------------------------------------------------------------------------------------ the schema
 
-const std::vector<std::string> kTopKeys = {"sample_rate_hz", "log_level", "plugin_dirs", "output", "devices",
-                                           "localizers"};
+const std::vector<std::string> kTopKeys = {"sample_rate_hz", "log_level", "plugin_dirs", "output", "link",
+                                           "outputs", "devices", "localizers"};
 const std::vector<std::string> kOutputKeys = {"path", "events"};
-const std::vector<std::string> kDeviceKeys = {"id", "audio", "imu", "ble", "sync", "detectors"};
+const std::vector<std::string> kDeviceKeys = {"id", "audio", "imu", "ble", "sync", "playback", "geometry", "detectors"};
+const std::vector<std::string> kPlaybackKeys = {"sink", "max_pending", "params"};
+const std::vector<std::string> kLinkKeys = {"type", "params"};
+const std::vector<std::string> kEventOutputKeys = {"type", "events", "params"};
+
+/// The `geometry:` section's schema (flat lists: a YAML schema has no nested lists).
+const ParamSchema& geometry_schema() {
+  static const ParamSchema schema{
+      float_list_param("mics_m", std::vector<double>{}, -100.0, 100.0, "m",
+                       "Microphone positions in the body frame, x y z per audio channel, flattened.", 0, 3 * 32),
+      float_list_param("speaker_m", std::vector<double>{}, -100.0, 100.0, "m",
+                       "Speaker position in the body frame (x, y, z); empty = none.", 0, 3),
+      float_list_param("anchor_m", std::vector<double>{}, -1.0e6, 1.0e6, "m",
+                       "Known world position of the device (x, y, z); empty = unknown.", 0, 3),
+  };
+  return schema;
+}
 const std::vector<std::string> kSensorKeys = {"source", "queue_capacity", "params"};
 const std::vector<std::string> kAudioKeys = {"source", "ring_frames", "block_frames", "params"};
 const std::vector<std::string> kComponentKeys = {"plugin", "name", "params"};
@@ -333,6 +349,8 @@ class ConfigChecker {
     }
     if (const Entry* e = top->find("plugin_dirs")) plugin_dirs(*e);
     if (const Entry* e = top->find("output")) output(*e);
+    if (const Entry* e = top->find("link")) link(*e);
+    if (const Entry* e = top->find("outputs")) outputs(*e);
 
     // Entries seen in devices and localizers (a list that is not a list counts as seen: it was reported).
     std::size_t entries = 0;
@@ -399,35 +417,152 @@ class ConfigChecker {
       }
     }
     if (const Entry* ev = s->find("events")) {
-      const auto items = c_.list(*ev, "output.events", "event types");
-      if (!items) return;
-      std::vector<std::string> known;
-      for (std::size_t t = 0; t < kEventTypeCount; ++t) {
-        known.emplace_back(event_type_name(static_cast<EventType>(t)));
+      if (auto events = event_list(*ev, "output.events")) config_.output.events = std::move(*events);
+    }
+  }
+
+  /// A list of event type names (no duplicates).
+  std::optional<std::vector<EventType>> event_list(const Entry& ev, const std::string& list_path) {
+    const auto items = c_.list(ev, list_path, "event types");
+    if (!items) return std::nullopt;
+    std::vector<std::string> known;
+    for (std::size_t t = 0; t < kEventTypeCount; ++t) known.emplace_back(event_type_name(static_cast<EventType>(t)));
+    std::vector<EventType> events;
+    std::map<EventType, int> first_line;
+    for (std::size_t i = 0; i < items->size(); ++i) {
+      const YAML::Node& n = (*items)[i];
+      const std::string path = index_path(list_path, i);
+      const YAML::Mark where = n.IsNull() ? ev.where() : n.Mark();
+      EventType t{};
+      if (!n.IsScalar()) {
+        c_.error(where, path, "expected an event type (" + join(known) + "), got " + got(n));
+      } else if (!event_type_from_name(n.Scalar(), t)) {
+        std::string m = "unknown event type '" + n.Scalar() + "'";
+        if (const std::string guess = closest(n.Scalar(), known); !guess.empty()) m += "; did you mean '" + guess + "'?";
+        c_.error(where, path, m + " (known: " + join(known) + ")");
+      } else if (const auto seen = first_line.find(t); seen != first_line.end()) {
+        c_.error(where, path, "event type '" + n.Scalar() + "' is listed twice (first at line " +
+                                  std::to_string(seen->second) + ")");
+      } else {
+        first_line.emplace(t, where.line + 1);
+        events.push_back(t);
       }
-      std::vector<EventType> events;
-      std::map<EventType, int> first_line;
-      for (std::size_t i = 0; i < items->size(); ++i) {
-        const YAML::Node& n = (*items)[i];
-        const std::string path = index_path("output.events", i);
-        const YAML::Mark where = n.IsNull() ? ev->where() : n.Mark();
-        EventType t{};
-        if (!n.IsScalar()) {
-          c_.error(where, path, "expected an event type (" + join(known) + "), got " + got(n));
-        } else if (!event_type_from_name(n.Scalar(), t)) {
-          std::string m = "unknown event type '" + n.Scalar() + "'";
-          if (const std::string guess = closest(n.Scalar(), known); !guess.empty()) m += "; did you mean '" + guess + "'?";
-          c_.error(where, path, m + " (known: " + join(known) + ")");
-        } else if (const auto seen = first_line.find(t); seen != first_line.end()) {
-          c_.error(where, path, "event type '" + n.Scalar() + "' is listed twice (first at line " +
-                                    std::to_string(seen->second) + ")");
-        } else {
-          first_line.emplace(t, where.line + 1);
-          events.push_back(t);
+    }
+    return events;
+  }
+
+  /// The shared shape of `playback:`, `link:` and `outputs[i]`: a registry name under `name_key`
+  /// (looked up with `find`, listed by `names` in the error) and `params` validated against its
+  /// schema. Returns the name ("" when missing) and the validated params.
+  template <typename Descriptor>
+  std::pair<std::string, Params> named_params(const Section& s, const std::string& path, const char* name_key,
+                                              const std::vector<Descriptor>& registered, const std::string& what) {
+    std::string name;
+    const Descriptor* found = nullptr;
+    if (const Entry* e = s.find(name_key)) {
+      if (auto v = c_.string(*e, child(path, name_key))) {
+        name = *v;
+        std::vector<std::string> names;
+        for (const Descriptor& d : registered) {
+          names.push_back(d.name);
+          if (d.name == name) found = &d;
+        }
+        if (found == nullptr) {
+          std::string m = "unknown " + what + " '" + name + "'";
+          if (const std::string guess = closest(name, names); !guess.empty()) m += "; did you mean '" + guess + "'?";
+          m += names.empty() ? " (no " + what + "s are registered)" : " (registered: " + join(names) + ")";
+          c_.error(e->where(), child(path, name_key), std::move(m));
         }
       }
-      config_.output.events = std::move(events);
+    } else {
+      c_.missing(s, path, name_key);
     }
+    const Entry* params = s.find("params");
+    Params out;
+    if (found != nullptr) {
+      out = c_.params(found->schema, params, s.mark(), child(path, "params"), what + " '" + found->name + "'");
+    } else if (params != nullptr && !params->value.IsNull() && !params->value.IsMap()) {
+      c_.error(params->where(), child(path, "params"), "expected a mapping, got " + got(params->value));
+    }
+    return {name, std::move(out)};
+  }
+
+  void link(const Entry& e) {
+    const auto s = c_.mapping(e.value, e.where(), "link", kLinkKeys);
+    if (!s) return;
+    auto [type, params] = named_params(*s, "link", "type", registry_.links(), "link");
+    config_.link = LinkConfig{std::move(type), std::move(params)};
+  }
+
+  void outputs(const Entry& e) {
+    const auto items = c_.list(e, "outputs", "outputs");
+    if (!items) return;
+    for (std::size_t i = 0; i < items->size(); ++i) {
+      const std::string path = index_path("outputs", i);
+      const YAML::Node& n = (*items)[i];
+      const auto s = c_.mapping(n, n.IsNull() ? e.where() : n.Mark(), path, kEventOutputKeys);
+      if (!s) continue;
+      EventOutputConfig out;
+      auto [type, params] = named_params(*s, path, "type", registry_.outputs(), "output");
+      out.type = std::move(type);
+      out.params = std::move(params);
+      if (const Entry* ev = s->find("events")) {
+        if (auto events = event_list(*ev, child(path, "events"))) out.events = std::move(*events);
+      }
+      config_.outputs.push_back(std::move(out));
+    }
+  }
+
+  std::optional<PlaybackConfig> playback(const Entry& e, const std::string& path) {
+    const auto s = c_.mapping(e.value, e.where(), path, kPlaybackKeys);
+    if (!s) return std::nullopt;
+    PlaybackConfig out;
+    auto [sink, params] = named_params(*s, path, "sink", registry_.sinks(), "playback sink");
+    out.sink = std::move(sink);
+    out.params = std::move(params);
+    if (const Entry* q = s->find("max_pending")) {
+      if (const auto v = c_.value(make_spec(ParamType::Int, 1.0, 4096.0), *q, child(path, "max_pending"))) {
+        out.max_pending = static_cast<std::uint32_t>(std::get<std::int64_t>(*v));
+      }
+    }
+    return out;
+  }
+
+  std::optional<GeometryConfig> geometry(const Entry& e, const std::string& path) {
+    if (!e.value.IsMap()) {
+      c_.error(e.where(), path, "expected a mapping {mics_m, speaker_m, anchor_m}, got " + got(e.value));
+      return std::nullopt;
+    }
+    const Params p = c_.params(geometry_schema(), &e, e.where(), path, "geometry");
+    if (!p.has("mics_m") || !p.has("speaker_m") || !p.has("anchor_m")) return std::nullopt;  // reported
+    GeometryConfig g;
+    bool ok = true;
+    const auto mark_of = [&](const char* key) {
+      const YAML::Node n = e.value[key];
+      return n.IsDefined() && !n.IsNull() ? n.Mark() : e.where();
+    };
+    const std::vector<double>& mics = p.get_floats("mics_m");
+    if (mics.size() % 3 != 0) {
+      c_.error(mark_of("mics_m"), child(path, "mics_m"),
+               "expected x, y, z per microphone (a multiple of 3 numbers), got " + std::to_string(mics.size()));
+      ok = false;
+    }
+    for (std::size_t i = 0; i + 2 < mics.size(); i += 3) g.mics_m.push_back({mics[i], mics[i + 1], mics[i + 2]});
+    auto point = [&](const char* key, std::optional<std::array<double, 3>>& out) {
+      const std::vector<double>& v = p.get_floats(key);
+      if (v.empty()) return true;
+      if (v.size() != 3) {
+        c_.error(mark_of(key), child(path, key), "expected 3 numbers [x, y, z] or an empty list, got " +
+                                                  std::to_string(v.size()));
+        return false;
+      }
+      out = std::array<double, 3>{v[0], v[1], v[2]};
+      return true;
+    };
+    ok = point("speaker_m", g.speaker_m) && ok;
+    ok = point("anchor_m", g.anchor_m) && ok;
+    if (!ok) return std::nullopt;
+    return g;
   }
 
   void device(const YAML::Node& node, std::size_t index, const YAML::Mark& list_mark) {
@@ -461,6 +596,8 @@ class ConfigChecker {
       const std::string key(sensor_kind_name(kind));
       if (const Entry* e = s->find(key)) dev.sensor(kind) = sensor(*e, child(path, key), kind);
     }
+    if (const Entry* e = s->find("playback")) dev.playback = playback(*e, child(path, "playback"));
+    if (const Entry* e = s->find("geometry")) dev.geometry = geometry(*e, child(path, "geometry"));
     config_.devices.push_back(std::move(dev));
     if (const Entry* e = s->find("detectors")) {
       const std::string list_path = child(path, "detectors");

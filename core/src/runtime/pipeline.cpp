@@ -196,6 +196,10 @@ struct Pipeline::Device {
   std::unique_ptr<SpdLogger> source_log;
   std::unique_ptr<AudioSource> source;
   std::unique_ptr<AudioRing> ring;
+  std::unique_ptr<SpdLogger> sink_log;
+  std::unique_ptr<AudioSink> sink;              // `playback:` section
+  std::unique_ptr<PlaybackScheduler> scheduler;
+  std::unique_ptr<SchedulerEmitter> emitter;
   struct Sensor {
     SensorKind kind;
     std::string name;
@@ -227,11 +231,35 @@ Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions opt
       options_(std::move(options)),
       fft_(std::make_unique<FftwPlanner>()),
       clock_(std::make_unique<SteadyClock>()) {
-  if (options_.link == nullptr) {
-    own_link_ = std::make_unique<InProcessLink>();
+  if (options_.link != nullptr) {
+    link_ = options_.link;
+  } else if (config_.link) {
+    const LinkDescriptor* d = registry_.find_link(config_.link->type);
+    if (d == nullptr) throw std::runtime_error("link: unknown type '" + config_.link->type + "'");
+    link_log_ = std::make_unique<SpdLogger>("link/" + config_.link->type);
+    try {
+      own_link_ = d->create(config_.link->params, *link_log_);
+    } catch (const std::exception& e) {
+      throw std::runtime_error("link '" + config_.link->type + "': " + e.what());
+    }
     link_ = own_link_.get();
   } else {
-    link_ = options_.link;
+    auto inprocess = std::make_unique<InProcessLink>();
+    own_inprocess_ = inprocess.get();
+    own_link_ = std::move(inprocess);
+    link_ = own_link_.get();
+  }
+  for (const DeviceConfig& dc : config_.devices) {
+    if (dc.is_template() || !dc.geometry || options_.geometry.count(dc.id) > 0) continue;
+    GeometrySpec spec;
+    const GeometryConfig& g = *dc.geometry;
+    spec.geometry.mic_count = static_cast<std::uint32_t>(std::min<std::size_t>(g.mics_m.size(), DeviceGeometry::kMaxMics));
+    for (std::uint32_t i = 0; i < spec.geometry.mic_count; ++i) spec.geometry.mics_m[i] = g.mics_m[i];
+    spec.geometry.has_speaker = g.speaker_m.has_value();
+    if (g.speaker_m) spec.geometry.speaker_m = *g.speaker_m;
+    spec.geometry.has_anchor = g.anchor_m.has_value();
+    if (g.anchor_m) spec.geometry.anchor_m = *g.anchor_m;
+    options_.geometry.emplace(dc.id, std::move(spec));
   }
   for (auto& [id, spec] : options_.geometry) spec.geometry.emits_json = spec.emits_json.c_str();
   const auto geometry_of = [this](const std::string& id) -> const DeviceGeometry* {
@@ -269,6 +297,27 @@ Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions opt
       dev->ring = std::make_unique<AudioRing>(dev->source->channels(), ac.ring_frames);
       info.channels = dev->source->channels();
       info.sample_rate_hz = dev->source->sample_rate_hz();
+    }
+    if (dc.playback) {
+      const PlaybackConfig& pc = *dc.playback;
+      dev->sink_log = std::make_unique<SpdLogger>(dc.id + "/" + pc.sink + " (playback)");
+      HostContext ctx{*dev->sink_log, *clock_, *fft_, *dispatched_link_, pc.sink, dc.id, dev->geometry};
+      const SinkDescriptor* d = registry_.find_sink(pc.sink);
+      try {
+        if (d == nullptr) throw std::runtime_error("unknown playback sink");
+        dev->sink = d->create();
+        if (!dev->sink) throw std::runtime_error("the factory returned no instance");
+        dev->sink->open(pc.params, ctx);
+      } catch (const std::exception& e) {
+        throw std::runtime_error("device '" + dc.id + "': playback sink '" + pc.sink + "': " + e.what());
+      }
+      if (std::abs(dev->sink->sample_rate_hz() - config_.sample_rate_hz) > 1e-6) {
+        throw std::runtime_error("device '" + dc.id + "': playback sink '" + pc.sink + "' runs at " +
+                                 std::to_string(dev->sink->sample_rate_hz()) + " Hz but the node is configured for " +
+                                 std::to_string(config_.sample_rate_hz) + " Hz (sample_rate_hz)");
+      }
+      dev->scheduler = std::make_unique<PlaybackScheduler>(dev->sink->sample_rate_hz(), pc.max_pending);
+      dev->emitter = std::make_unique<SchedulerEmitter>(*dev->scheduler);
     }
     std::size_t sensor_capacity = 0;
     for (const SensorKind kind : {SensorKind::Imu, SensorKind::Ble, SensorKind::Sync}) {
@@ -314,7 +363,7 @@ Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions opt
                                  " but the device has no such stream");
       }
       auto log = std::make_unique<SpdLogger>(cc.name);
-      HostContext dctx{*log, *clock_, *fft_, *dispatched_link_, cc.name, dc.id, dev->geometry};
+      HostContext dctx{*log, *clock_, *fft_, *dispatched_link_, cc.name, dc.id, dev->geometry, dev->emitter.get()};
       try {
         auto det = registry_.create_detector(cc.plugin);
         det->configure(info, cc.params, dctx);
@@ -343,13 +392,28 @@ Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions opt
     devices_.push_back(std::move(dev));
   }
 
-  const DeviceGeometry* node_geometry = geometry_of(options_.localizer_device);
+  // Localizers serve options_.localizer_device (replay: one node per device). A node-wide localizer
+  // (locusd) on a node with exactly one device gets that device's geometry and emitter.
+  std::string served = options_.localizer_device;
+  if (served.empty()) {
+    std::vector<const DeviceConfig*> real;
+    for (const DeviceConfig& dc : config_.devices) {
+      if (!dc.is_template()) real.push_back(&dc);
+    }
+    if (real.size() == 1) served = real.front()->id;
+  }
+  const DeviceGeometry* node_geometry = geometry_of(served);
+  Emitter* node_emitter = nullptr;
+  for (const auto& dev : devices_) {
+    if (dev->id == served && dev->emitter) node_emitter = dev->emitter.get();
+  }
   for (const ComponentConfig& cc : config_.localizers) {
     auto inst = std::make_unique<LocalizerInstance>();
     inst->name = cc.name;
     inst->log = std::make_unique<SpdLogger>(options_.localizer_device.empty() ? cc.name
                                                                               : options_.localizer_device + "/" + cc.name);
-    HostContext ctx{*inst->log, *clock_, *fft_, *dispatched_link_, cc.name, options_.localizer_device, node_geometry};
+    HostContext ctx{*inst->log, *clock_, *fft_, *dispatched_link_, cc.name, options_.localizer_device, node_geometry,
+                    node_emitter};
     try {
       inst->localizer = registry_.create_localizer(cc.plugin);
       inst->localizer->configure(cc.params, ctx);
@@ -370,6 +434,20 @@ Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions opt
       JsonLinesWriter* w = writer_.get();
       bus_.subscribe(t, [w](const Event& e) { w->write(e); });
     }
+  }
+  for (const EventOutputConfig& oc : config_.outputs) {
+    const OutputDescriptor* d = registry_.find_output(oc.type);
+    if (d == nullptr) throw std::runtime_error("output: unknown type '" + oc.type + "'");
+    output_logs_.push_back(std::make_unique<SpdLogger>("output/" + oc.type));
+    std::unique_ptr<EventOutput> out;
+    try {
+      out = d->create(oc.params, *output_logs_.back());
+    } catch (const std::exception& e) {
+      throw std::runtime_error("output '" + oc.type + "': " + e.what());
+    }
+    EventOutput* o = out.get();
+    for (EventType t : oc.events) bus_.subscribe(t, [o](const Event& e) { o->write(e); });
+    outputs_.push_back(std::move(out));
   }
 }
 
@@ -399,6 +477,7 @@ void Pipeline::start() {
     d->thread = std::thread([this, d] { run_device(*d); });
   }
   for (auto& dev : devices_) {
+    if (dev->sink) dev->sink->start(*dev->scheduler);  // playing before capture starts
     if (dev->source) dev->source->start(*dev->ring);
     for (auto& s : dev->sensors) s.source->start(*s.queue);
   }
@@ -418,6 +497,7 @@ void Pipeline::stop_inputs() {
     for (auto& dev : devices_) {
       if (dev->source) dev->source->stop();
       for (auto& s : dev->sensors) s.source->stop();
+      if (dev->sink) dev->sink->stop();
     }
     for (auto& dev : devices_) {
       dev->stop_requested.store(true, std::memory_order_release);
@@ -452,7 +532,7 @@ void Pipeline::settle() {
   // The dispatcher has stopped: this thread now delivers. Let link traffic settle (own link only; a
   // shared link is the embedder's to flush).
   do {
-    if (own_link_) static_cast<InProcessLink&>(*own_link_).flush();
+    if (own_inprocess_ != nullptr) own_inprocess_->flush();
   } while (deliver_pending() > 0);
 }
 
@@ -467,6 +547,7 @@ void Pipeline::flush() {
               s.events_dropped, s.source_error.empty() ? "" : ", source error: " + s.source_error);
   }
   if (writer_) writer_->flush();
+  for (auto& o : outputs_) o->flush();
 }
 
 void Pipeline::stop() {
@@ -491,6 +572,11 @@ std::vector<DeviceStats> Pipeline::stats() const {
     }
     if (dev->queue) s.events_dropped = dev->queue->dropped();
     if (dev->source) s.source_error = dev->source->error();
+    if (dev->sink) {
+      s.playback_xruns = dev->sink->xruns();
+      s.late_emissions = dev->emitter->late_emissions();
+      if (s.source_error.empty() && !dev->sink->error().empty()) s.source_error = "playback: " + dev->sink->error();
+    }
     if (dev->device_runner) s.sensor_events = dev->device_runner->sensor_events_delivered();
     for (const auto& sensor : dev->sensors) {
       s.sensor_dropped += sensor.queue->dropped();

@@ -235,4 +235,32 @@ std::unique_ptr<SensorSource> Registry::create_sensor_source(std::string_view na
   return p;
 }
 
+namespace {
+// Shared shape of the host-side descriptor lists (sinks, links, outputs): unique non-empty names and
+// a factory.
+template <typename Descriptor>
+void add_named(std::vector<Descriptor>& list, Descriptor d, const char* what) {
+  if (d.name.empty()) throw std::invalid_argument(std::string("cannot add a ") + what + " without a name");
+  if (!d.create) throw std::invalid_argument(std::string(what) + " '" + d.name + "' has no factory");
+  for (const Descriptor& e : list) {
+    if (e.name == d.name) throw std::invalid_argument(std::string(what) + " '" + d.name + "' is already registered");
+  }
+  list.push_back(std::move(d));
+}
+template <typename Descriptor>
+const Descriptor* find_named(const std::vector<Descriptor>& list, std::string_view name) {
+  for (const Descriptor& e : list) {
+    if (e.name == name) return &e;
+  }
+  return nullptr;
+}
+}  // namespace
+
+void Registry::add_sink(SinkDescriptor sink) { add_named(sinks_, std::move(sink), "playback sink"); }
+void Registry::add_link(LinkDescriptor link) { add_named(links_, std::move(link), "link"); }
+void Registry::add_output(OutputDescriptor output) { add_named(outputs_, std::move(output), "output"); }
+const SinkDescriptor* Registry::find_sink(std::string_view name) const { return find_named(sinks_, name); }
+const LinkDescriptor* Registry::find_link(std::string_view name) const { return find_named(links_, name); }
+const OutputDescriptor* Registry::find_output(std::string_view name) const { return find_named(outputs_, name); }
+
 }  // namespace locus

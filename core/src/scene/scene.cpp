@@ -4,6 +4,7 @@
 // are ignored, `emits` entries of an unknown type are kept (require_known_signal_types() turns them
 // into errors for a consumer that needs them). Numbers are written in their shortest round-trip form,
 // so load_scene(write_scene_yaml(x)) reproduces x exactly.
+#include <nlohmann/json.hpp>
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
@@ -260,6 +261,63 @@ std::optional<Vec3> parse_anchor(Checker& ck, const YAML::Node& n, const std::st
 }
 
 }  // namespace
+
+dsp::SignalSpec parse_signal_text(std::string_view text, const std::string& name) {
+  Checker ck(name);
+  YAML::Node n;
+  try {
+    n = YAML::Load(std::string(text));
+  } catch (const YAML::Exception& e) {
+    SceneIssue is;
+    is.file = name;
+    if (!e.mark.is_null()) {
+      is.line = e.mark.line + 1;
+      is.column = e.mark.column + 1;
+    }
+    is.message = "not valid YAML/JSON: " + e.msg;
+    throw SceneError({is});
+  }
+  if (!n.IsMap()) {
+    ck.issue(n, "", "expected one signal object ({\"type\": ..., ...}), got " + shown(n));
+    throw SceneError(std::move(ck.issues));
+  }
+  dsp::SignalSpec spec = parse_signal(ck, n, "");
+  if (!ck.issues.empty()) throw SceneError(std::move(ck.issues));
+  return spec;
+}
+
+std::string signals_to_json(const std::vector<dsp::SignalSpec>& signals) {
+  nlohmann::ordered_json out = nlohmann::ordered_json::array();
+  for (const dsp::SignalSpec& s : signals) {
+    nlohmann::ordered_json j{{"type", s.type}};
+    if (s.type == "lfm") {
+      j["f0"] = s.f0_hz;
+      j["f1"] = s.f1_hz;
+      j["duration"] = s.duration_s;
+      j["fade"] = s.fade_s;
+      j["amplitude"] = s.amplitude;
+    } else if (s.type == "multitone") {
+      j["tones_hz"] = s.tones_hz;
+      j["duration"] = s.duration_s;
+      j["fade"] = s.fade_s;
+      j["amplitude"] = s.amplitude;
+    } else if (s.type == "gold") {
+      j["degree"] = s.degree;
+      j["index"] = s.index;
+      j["carrier"] = s.carrier_hz;
+      j["chip_samples"] = s.chip_samples;
+      j["amplitude"] = s.amplitude;
+      if (!s.chips.empty()) j["chips"] = s.chips;
+    } else if (s.type == "ble") {
+      j["address"] = s.address;
+      j["tx_power_dbm"] = s.tx_power_dbm;
+      j["interval_s"] = s.interval_s;
+    }
+    if (s.sync_delay_s) j["sync_delay_s"] = *s.sync_delay_s;
+    out.push_back(std::move(j));
+  }
+  return out.dump();
+}
 
 bool is_known_signal_type(const std::string& type) noexcept {
   for (const char* k : kKnownTypes)

@@ -14,6 +14,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -115,6 +116,15 @@ void write_scene_yaml(const Scene& scene);
 /// error) is collected, then thrown as one SceneError. A truncated data chunk is not an error (the
 /// readers deliver the frames present): it is returned as a warning line, "file: byte N: ...".
 std::vector<std::string> validate_scene_streams(const Scene& scene);
+
+/// Parses one signal object (scene-format field names) from YAML or JSON text, e.g. what a plugin hands
+/// to Emitter::schedule: {"type":"lfm","f0":18000,"f1":22000,"duration":0.05,"fade":0.005}. `name`
+/// stands for the source in messages. Throws SceneError with every issue found.
+dsp::SignalSpec parse_signal_text(std::string_view text, const std::string& name = "signal");
+
+/// `signals` as a JSON array with the field names of scene-format.md (the inverse of parse_signal_text
+/// for each element); DeviceGeometry::emits_json is made with it.
+std::string signals_to_json(const std::vector<dsp::SignalSpec>& signals);
 
 /// Signal types this reader knows ("lfm", "gold", "multitone", "ble").
 bool is_known_signal_type(const std::string& type) noexcept;

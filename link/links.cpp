@@ -1,0 +1,34 @@
+// Registers the built-in links and network event outputs: link "mqtt" and output "mqtt" (link/mqtt).
+#include "links.hpp"
+
+#include <memory>
+
+#include "mqtt/mqtt_link.hpp"
+#include "mqtt/mqtt_output.hpp"
+
+namespace locus::links {
+
+void register_builtin_links(Registry& registry) {
+  registry.add_link(LinkDescriptor{
+      "mqtt",
+      "MQTT broker between boards (libmosquitto): reconnects, re-subscribes, queues while offline; "
+      "optional username/password and TLS (docs/mqtt.md)",
+      mqtt::mqtt_link_schema(),
+      [](const Params& params, Logger& log) -> std::unique_ptr<Link> {
+        mqtt::MqttOptions options = mqtt::mqtt_options_from_params(params, "mqtt link");
+        return std::make_unique<mqtt::MqttLink>(std::move(options), params.get_string("topic_prefix"), log);
+      },
+  });
+  registry.add_output(OutputDescriptor{
+      "mqtt",
+      "events as JSON on MQTT topics, with Home Assistant discovery for estimates (docs/mqtt.md)",
+      mqtt::mqtt_output_schema(),
+      [](const Params& params, Logger& log) -> std::unique_ptr<EventOutput> {
+        mqtt::MqttOptions options = mqtt::mqtt_options_from_params(params, "mqtt output");
+        return std::make_unique<mqtt::MqttEventOutput>(std::move(options), mqtt::mqtt_output_options_from_params(params),
+                                                       log);
+      },
+  });
+}
+
+}  // namespace locus::links

@@ -1,0 +1,170 @@
+// A fake IIO sysfs tree in a private temp dir (the layout of /work/shared/docs/real-components.md, IIO):
+//   <root>/sys/bus/iio/devices/iio:deviceN/{name, sampling_frequency, in_<type>_<axis>_raw,
+//       in_<type>_scale, buffer/{enable,length,watermark}, scan_elements/in_<ch>_{en,index,type}}
+//   <root>/dev/iio:deviceN   a FIFO standing in for the buffered character device
+// plus a writer for the FIFO that packs scans the way the kernel does. Header-only, for the IIO tests.
+#pragma once
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "iio/iio_parse.hpp"
+
+namespace locus::test {
+
+class FakeIioTree {
+ public:
+  FakeIioTree() {
+    const char* tmp = std::getenv("TMPDIR");
+    std::string templ = std::string(tmp && *tmp ? tmp : "/tmp") + "/locus-iio-XXXXXX";
+    if (::mkdtemp(templ.data()) == nullptr) throw std::runtime_error("mkdtemp failed: " + std::string(std::strerror(errno)));
+    root_ = templ;
+  }
+  ~FakeIioTree() {
+    std::error_code ec;
+    std::filesystem::remove_all(root_, ec);
+  }
+  FakeIioTree(const FakeIioTree&) = delete;
+  FakeIioTree& operator=(const FakeIioTree&) = delete;
+
+  const std::string& root() const noexcept { return root_; }
+  std::string path(const std::string& rel) const { return root_ + "/" + rel; }
+
+  void write(const std::string& rel, const std::string& content) const {
+    const std::filesystem::path p = path(rel);
+    std::filesystem::create_directories(p.parent_path());
+    std::ofstream f(p, std::ios::binary | std::ios::trunc);
+    f << content;
+    if (!f) throw std::runtime_error("cannot write " + p.string());
+  }
+  std::string read(const std::string& rel) const {
+    std::ifstream f(path(rel), std::ios::binary);
+    if (!f) throw std::runtime_error("cannot read " + path(rel));
+    std::stringstream ss;
+    ss << f.rdbuf();
+    return ss.str();
+  }
+  void remove(const std::string& rel) const { std::filesystem::remove(path(rel)); }
+  void mkfifo(const std::string& rel) const {
+    const std::filesystem::path p = path(rel);
+    std::filesystem::create_directories(p.parent_path());
+    if (::mkfifo(p.c_str(), 0600) != 0) throw std::runtime_error("mkfifo " + p.string() + ": " + std::strerror(errno));
+  }
+
+  /// sys/bus/iio/devices/iio:device<n>/
+  static std::string dev_rel(int n) { return "sys/bus/iio/devices/iio:device" + std::to_string(n) + "/"; }
+
+  struct ImuOptions {
+    std::string name = "lsm6dsl";
+    std::string accel_scale = "0.000598550";  // m/s^2 per LSB (+-2 g on a 16-bit part)
+    std::string gyro_scale = "0.000152716";   // rad/s per LSB
+    std::string type = "le:s16/16>>0";
+    bool timestamp = true;
+    bool magn = false;
+    std::string magn_scale = "0.000146";      // Gauss per LSB
+    std::string sampling_frequency = "104.000000";
+    bool buffered = true;
+  };
+
+  /// A complete accel + gyro (+ magn) device at index n with a FIFO at dev/iio:device<n>. Scan indices:
+  /// accel x/y/z 0..2, anglvel x/y/z 3..5, magn x/y/z 6..8 (when present), timestamp last. Every scan
+  /// element starts disabled (the source must enable what it needs). A temperature channel is present
+  /// and enabled to check that the source disables what it does not use.
+  void add_imu(int n) const { add_imu(n, ImuOptions()); }
+  void add_imu(int n, const ImuOptions& o) const {
+    const std::string d = dev_rel(n);
+    write(d + "name", o.name + "\n");
+    if (!o.sampling_frequency.empty()) write(d + "sampling_frequency", o.sampling_frequency + "\n");
+    write(d + "in_accel_scale", o.accel_scale + "\n");
+    write(d + "in_anglvel_scale", o.gyro_scale + "\n");
+    const char* axes[] = {"x", "y", "z"};
+    int index = 0;
+    auto scan_element = [&](const std::string& ch, const std::string& type, const char* en) {
+      write(d + "scan_elements/" + ch + "_en", std::string(en) + "\n");
+      write(d + "scan_elements/" + ch + "_index", std::to_string(index++) + "\n");
+      write(d + "scan_elements/" + ch + "_type", type + "\n");
+    };
+    std::vector<std::string> types{"accel", "anglvel"};
+    if (o.magn) {
+      types.push_back("magn");
+      write(d + "in_magn_scale", o.magn_scale + "\n");
+    }
+    for (const std::string& t : types) {
+      for (const char* a : axes) {
+        write(d + "in_" + t + "_" + a + "_raw", "0\n");
+        if (o.buffered) scan_element("in_" + t + "_" + a, o.type, "0");
+      }
+    }
+    if (o.buffered) {
+      scan_element("in_temp", "le:s16/16>>0", "1");
+      if (o.timestamp) scan_element("in_timestamp", "le:s64/64>>0", "0");
+      write(d + "buffer/enable", "0\n");
+      write(d + "buffer/length", "128\n");
+      write(d + "buffer/watermark", "1\n");
+      mkfifo("dev/iio:device" + std::to_string(n));
+    }
+  }
+
+ private:
+  std::string root_;
+};
+
+/// Writes to a FIFO from the test side: connects once the reader has opened it (within a deadline).
+class FifoWriter {
+ public:
+  explicit FifoWriter(std::string path) : path_(std::move(path)) {}
+  ~FifoWriter() { close(); }
+  FifoWriter(const FifoWriter&) = delete;
+  FifoWriter& operator=(const FifoWriter&) = delete;
+
+  /// Opens for writing; false when no reader appeared within `timeout`.
+  bool connect(std::chrono::milliseconds timeout = std::chrono::milliseconds(10000)) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      fd_ = ::open(path_.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);
+      if (fd_ >= 0) {
+        const int flags = ::fcntl(fd_, F_GETFL);
+        ::fcntl(fd_, F_SETFL, flags & ~O_NONBLOCK);
+        return true;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    return false;
+  }
+  bool write(const std::vector<std::uint8_t>& bytes) {
+    std::size_t done = 0;
+    while (done < bytes.size()) {
+      const ssize_t n = ::write(fd_, bytes.data() + done, bytes.size() - done);
+      if (n < 0) {
+        if (errno == EINTR) continue;
+        return false;
+      }
+      done += static_cast<std::size_t>(n);
+    }
+    return true;
+  }
+  void close() {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+  }
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+};
+
+}  // namespace locus::test

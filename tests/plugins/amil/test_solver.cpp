@@ -1,0 +1,326 @@
+// AMIL solver (plugins/amil/solver.hpp): the paper's 3-beep closed form, the direction-majority
+// filter, the given-skew (calibration) drift fix, the joint position + skew least squares, its robust
+// variant, weak-geometry fallbacks, the Cramér-Rao bound, and that the reported std matches the
+// Monte-Carlo spread of the estimates (a solver that claims a wrong confidence fails here).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "amil/solver.hpp"
+
+namespace amil = locus::amil;
+
+namespace {
+
+constexpr double kC = 343.2;
+constexpr double kSide = 0.305;
+
+/// The paper's triangle (Sec. III): (0,0) → (−s,0) → (0,s) → (s,0) → (0,0), `gestures` times,
+/// a beep at every pause, 1.3 s apart.
+std::vector<amil::Beep> triangle(int gestures = 1, double t0 = 12.0) {
+  std::vector<Eigen::Vector2d> p{{0, 0}};
+  for (int g = 0; g < gestures; ++g) {
+    p.emplace_back(-kSide, 0.0);
+    p.emplace_back(0.0, kSide);
+    p.emplace_back(kSide, 0.0);
+    p.emplace_back(0.0, 0.0);
+  }
+  std::vector<amil::Beep> beeps;
+  for (std::size_t k = 0; k < p.size(); ++k) {
+    amil::Beep b;
+    b.position_m = p[k];
+    b.player_time_s = t0 + 1.3 * static_cast<double>(k) + 0.01 * std::sin(static_cast<double>(k));
+    beeps.push_back(b);
+  }
+  return beeps;
+}
+
+amil::ListenerArrivals arrivals(const std::vector<amil::Beep>& beeps, Eigen::Vector2d x, double skew) {
+  amil::ListenerArrivals a;
+  a.arrival_s = amil::exact_arrivals(beeps, x, skew, 2.345, kC);
+  return a;
+}
+
+amil::SolverConfig config(amil::Method m) {
+  amil::SolverConfig c;
+  c.method = m;
+  c.speed_of_sound_mps = kC;
+  c.timing_std_s = 1e-6;
+  c.position_std_m = 1e-4;
+  return c;
+}
+
+double angle_error_deg(double a, double b) {
+  double d = std::remainder(a - b, 2.0 * std::numbers::pi);
+  return std::abs(d) * 180.0 / std::numbers::pi;
+}
+
+const std::vector<Eigen::Vector2d>& grid() {
+  static const std::vector<Eigen::Vector2d> g = [] {
+    std::vector<Eigen::Vector2d> v;
+    for (int row = 1; row <= 4; ++row)
+      for (int col = -1; col <= 1; ++col) v.emplace_back(1.22 * col, 1.22 * row);
+    return v;
+  }();
+  return g;
+}
+
+}  // namespace
+
+TEST(AmilSolveThree, ExactSubsetGivesTheListener) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> U(-6.0, 6.0);
+  const Eigen::Vector2d pi(0, 0), pj(-0.3, 0.02), pk(0.01, 0.3);
+  int found = 0;
+  for (int t = 0; t < 200; ++t) {
+    const Eigen::Vector2d x(U(rng), U(rng));
+    if (x.norm() < 0.5) continue;
+    const double ddj = (x - pj).norm() - (x - pi).norm(), ddk = (x - pk).norm() - (x - pi).norm();
+    const auto pts = amil::solve_three(pi, pj, pk, ddj, ddk);
+    ASSERT_GE(pts.size(), 1u);
+    ASSERT_LE(pts.size(), 2u);
+    double best = 1e9;
+    for (const auto& p : pts) {
+      best = std::min(best, (p - x).norm());
+      // every returned point satisfies both equations
+      EXPECT_NEAR((p - pj).norm() - (p - pi).norm(), ddj, 1e-6);
+      EXPECT_NEAR((p - pk).norm() - (p - pi).norm(), ddk, 1e-6);
+    }
+    EXPECT_LT(best, 1e-6 * std::max(1.0, x.norm())) << x.transpose();
+    ++found;
+  }
+  EXPECT_GT(found, 150);
+}
+
+TEST(AmilSolveThree, TriangleInequalityBrokenHasNoSolution) {
+  // |dd| larger than the beep spacing cannot be a distance difference
+  EXPECT_TRUE(amil::solve_three({0, 0}, {0.3, 0}, {0, 0.3}, 0.35, 0.1).empty());
+  EXPECT_TRUE(amil::solve_three({0, 0}, {0.3, 0}, {0, 0.3}, 0.1, -0.31).empty());
+  // collinear beeps: the linear system is singular
+  EXPECT_TRUE(amil::solve_three({0, 0}, {0.3, 0}, {0.6, 0}, 0.1, 0.2).empty());
+}
+
+TEST(AmilPaper, ExactArrivalsWithoutSkewLocateEveryGridListener) {
+  const auto beeps = triangle();
+  for (const auto& x : grid()) {
+    const auto s = amil::solve(beeps, arrivals(beeps, x, 0.0), config(amil::Method::Paper));
+    ASSERT_EQ(s.status, amil::Status::Located) << x.transpose() << " " << s.note;
+    // (a listener on the gesture's symmetry axis is a double root of some subsets: sqrt(eps) precision)
+    EXPECT_LT((s.position_m - x).norm(), 1e-3) << x.transpose();
+    EXPECT_FALSE(s.candidates.empty());
+  }
+}
+
+TEST(AmilPaper, SkewBreaksTheDistanceUnlessCalibrated) {
+  const auto beeps = triangle();
+  const Eigen::Vector2d x(1.22, 2.44);
+  const double skew = 60e-6;  // 60 ppm: 0.3 samples per second of gesture
+  auto cfg = config(amil::Method::Paper);
+  const auto raw = amil::solve(beeps, arrivals(beeps, x, skew), cfg);
+  const double raw_err = raw.located() ? (raw.position_m - x).norm() : 1e9;
+  EXPECT_GT(raw_err, 0.3) << "an uncalibrated 60 ppm skew should visibly break the paper's distance";
+  cfg.known_skew = skew;  // the paper's per-model calibration table, exact
+  const auto cal = amil::solve(beeps, arrivals(beeps, x, skew), cfg);
+  ASSERT_EQ(cal.status, amil::Status::Located) << cal.note;
+  EXPECT_LT((cal.position_m - x).norm(), 1e-4);
+  EXPECT_DOUBLE_EQ(cal.skew, skew);
+  // the per-listener calibration wins over the config's
+  auto arr = arrivals(beeps, x, skew);
+  arr.known_skew = skew;
+  cfg.known_skew = 0.0;
+  EXPECT_LT((amil::solve(beeps, arr, cfg).position_m - x).norm(), 1e-4);
+}
+
+TEST(AmilJoint, RecoversPositionAndSkewExactly) {
+  for (int gestures : {1, 3}) {
+    auto cfg_of = [](amil::Method m) {
+      auto c = config(m);
+      c.timing_std_s = 1e-8;  // exact data: keep the reported distance std small (no direction-only)
+      return c;
+    };
+    const auto beeps = triangle(gestures);
+    for (double skew : {-80e-6, 0.0, 35e-6, 150e-6}) {
+      for (const auto& x : grid()) {
+        for (auto m : {amil::Method::Joint, amil::Method::Robust, amil::Method::PaperJointSkew}) {
+          const auto s = amil::solve(beeps, arrivals(beeps, x, skew), cfg_of(m));
+          ASSERT_EQ(s.status, amil::Status::Located) << amil::to_string(m) << " " << x.transpose() << " " << s.note;
+          EXPECT_LT((s.position_m - x).norm(), 1e-3) << amil::to_string(m) << " " << x.transpose();
+          EXPECT_NEAR(s.skew, skew, 1e-8) << amil::to_string(m);
+          EXPECT_LT(angle_error_deg(s.direction_rad, std::atan2(x.y(), x.x())), 0.01);
+          EXPECT_NEAR(s.distance_m, x.norm(), 1e-3);
+          EXPECT_EQ(s.beeps_heard, static_cast<int>(beeps.size()));
+        }
+      }
+    }
+  }
+}
+
+TEST(AmilJoint, MissedBeepStillLocates) {
+  const auto beeps = triangle(3);
+  const Eigen::Vector2d x(-1.22, 3.66);
+  auto arr = arrivals(beeps, x, 20e-6);
+  arr.arrival_s[0] = std::nan("");  // the first beep (the usual reference) missed
+  arr.arrival_s[6] = std::nan("");
+  auto b2 = beeps;
+  b2[9].player_time_s = std::nan("");  // the player did not find its own beep 9
+  const auto s = amil::solve(b2, arr, config(amil::Method::Robust));
+  ASSERT_EQ(s.status, amil::Status::Located) << s.note;
+  EXPECT_EQ(s.beeps_heard, 10);
+  EXPECT_LT((s.position_m - x).norm(), 1e-3);
+}
+
+TEST(AmilJoint, TooFewBeeps) {
+  const auto beeps = triangle();
+  const Eigen::Vector2d x(0.0, 1.22);
+  auto arr = arrivals(beeps, x, 0.0);
+  arr.arrival_s[1] = arr.arrival_s[2] = arr.arrival_s[3] = std::nan("");
+  const auto s = amil::solve(beeps, arr, config(amil::Method::Robust));
+  EXPECT_EQ(s.status, amil::Status::Failed);
+  EXPECT_NE(s.note.find("2 beeps"), std::string::npos) << s.note;
+  // three beeps: the skew cannot be estimated; the paper's closed form with the given skew is used
+  auto arr3 = arrivals(beeps, x, 0.0);
+  arr3.arrival_s[4] = arr3.arrival_s[3] = std::nan("");
+  const auto s3 = amil::solve(beeps, arr3, config(amil::Method::Robust));
+  EXPECT_TRUE(s3.status == amil::Status::Located || s3.status == amil::Status::Ambiguous) << s3.note;
+  EXPECT_NE(s3.note.find("paper method"), std::string::npos) << s3.note;
+  EXPECT_LT(angle_error_deg(s3.direction_rad, std::atan2(x.y(), x.x())), 1.0);
+}
+
+TEST(AmilRobust, OneCycleSlipIsDroppedWithThreeGestures) {
+  const auto beeps = triangle(3);
+  const Eigen::Vector2d x(1.22, 2.44);
+  auto arr = arrivals(beeps, x, -30e-6);
+  std::mt19937 rng(7);
+  std::normal_distribution<double> N(0.0, 1e-6);
+  for (auto& a : arr.arrival_s) a += N(rng);
+  arr.arrival_s[5] += 1.0 / 20000.0;  // one carrier cycle late at 20 kHz (1.7 cm of path)
+  auto cfg = config(amil::Method::Robust);
+  cfg.position_std_m = 0.0;
+  const auto robust = amil::solve(beeps, arr, cfg);
+  ASSERT_EQ(robust.status, amil::Status::Located) << robust.note;
+  EXPECT_NE(robust.note.find("beep 5 dropped"), std::string::npos) << robust.note;
+  EXPECT_EQ(robust.beeps_used, 12);
+  cfg.method = amil::Method::Joint;
+  const auto plain = amil::solve(beeps, arr, cfg);
+  ASSERT_EQ(plain.status, amil::Status::Located) << plain.note;
+  const double e_robust = (robust.position_m - x).norm(), e_plain = (plain.position_m - x).norm();
+  EXPECT_LT(e_robust, 0.05);
+  EXPECT_LT(e_robust * 3.0, e_plain) << "robust " << e_robust << " plain " << e_plain;
+}
+
+TEST(AmilWeakGeometry, FarListenerIsDirectionOnly) {
+  const auto beeps = triangle();
+  const Eigen::Vector2d x(-6.0, 25.0);
+  auto arr = arrivals(beeps, x, 10e-6);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> N(0.0, 2e-6);
+  for (auto& a : arr.arrival_s) a += N(rng);
+  auto cfg = config(amil::Method::Robust);
+  cfg.timing_std_s = 2e-6;
+  cfg.position_std_m = 0.0;
+  const auto s = amil::solve(beeps, arr, cfg);
+  ASSERT_EQ(s.status, amil::Status::DirectionOnly) << s.note << " " << s.position_m.transpose();
+  EXPECT_FALSE(std::isfinite(s.position_m.x()));
+  EXPECT_FALSE(std::isfinite(s.distance_m));
+  EXPECT_LT(angle_error_deg(s.direction_rad, std::atan2(x.y(), x.x())), 3.0);
+  EXPECT_FALSE(s.located());
+}
+
+TEST(AmilWeakGeometry, LineGestureIsAmbiguous) {
+  // beeps on a line cannot tell a listener from its mirror image across the line
+  std::vector<amil::Beep> beeps;
+  const std::vector<double> xs{0.0, -0.2, 0.2, 0.0, -0.2, 0.2};
+  for (std::size_t k = 0; k < xs.size(); ++k) {
+    amil::Beep b;
+    b.position_m = {xs[k], 0.0};
+    b.player_time_s = 5.0 + 1.1 * static_cast<double>(k);
+    beeps.push_back(b);
+  }
+  const Eigen::Vector2d x(0.8, 1.5);
+  const auto s = amil::solve(beeps, arrivals(beeps, x, 0.0), config(amil::Method::Joint));
+  ASSERT_EQ(s.status, amil::Status::Ambiguous) << s.note;
+  ASSERT_FALSE(s.alternatives.empty());
+  const Eigen::Vector2d mirror(0.8, -1.5);
+  const bool first_is_truth = (s.position_m - x).norm() < 1e-2 && (s.alternatives[0] - mirror).norm() < 1e-2;
+  const bool first_is_mirror = (s.position_m - mirror).norm() < 1e-2 && (s.alternatives[0] - x).norm() < 1e-2;
+  EXPECT_TRUE(first_is_truth || first_is_mirror) << s.position_m.transpose() << " / " << s.alternatives[0].transpose();
+  EXPECT_TRUE(s.located());
+}
+
+TEST(AmilBound, MonteCarloSpreadMatchesCramerRaoAndReportedStd) {
+  // With Gaussian timing noise only, the joint estimator is efficient near the listener: the spread
+  // of its estimates matches the CRB, and its own reported std matches both.
+  const auto beeps = triangle(3);
+  std::vector<Eigen::Vector2d> pos;
+  std::vector<double> times;
+  for (const auto& b : beeps) {
+    pos.push_back(b.position_m);
+    times.push_back(b.player_time_s);
+  }
+  const double sigma_t = 2e-6;
+  std::mt19937 rng(5);
+  std::normal_distribution<double> N(0.0, sigma_t);
+  auto cfg = config(amil::Method::Joint);
+  cfg.timing_std_s = sigma_t;
+  cfg.position_std_m = 0.0;
+  for (const Eigen::Vector2d x : {Eigen::Vector2d(0.0, 1.22), Eigen::Vector2d(-1.22, 2.44)}) {
+    const auto bound = amil::cramer_rao(pos, times, x, 25e-6, sigma_t, 0.0, kC);
+    ASSERT_TRUE(std::isfinite(bound.std_m));
+    double sum2 = 0, reported = 0;
+    const int trials = 400;
+    for (int t = 0; t < trials; ++t) {
+      auto arr = arrivals(beeps, x, 25e-6);
+      for (auto& a : arr.arrival_s) a += N(rng);
+      const auto s = amil::solve(beeps, arr, cfg);
+      ASSERT_EQ(s.status, amil::Status::Located) << s.note;
+      sum2 += (s.position_m - x).squaredNorm();
+      reported += s.std_m;
+    }
+    const double mc = std::sqrt(sum2 / trials);
+    EXPECT_NEAR(mc / bound.std_m, 1.0, 0.2) << "MC " << mc << " CRB " << bound.std_m << " at " << x.transpose();
+    EXPECT_NEAR(reported / trials / bound.std_m, 1.0, 0.2);
+    EXPECT_GT(bound.distance_std_m, 3.0 * bound.direction_std_rad * x.norm())
+        << "distance (curvature) must be far weaker than direction";
+  }
+  // farther is worse, and timing noise scales the bound linearly
+  const auto b1 = amil::cramer_rao(pos, times, {0.0, 1.22}, 0.0, sigma_t, 0.0, kC);
+  const auto b4 = amil::cramer_rao(pos, times, {0.0, 4.88}, 0.0, sigma_t, 0.0, kC);
+  const auto b4x2 = amil::cramer_rao(pos, times, {0.0, 4.88}, 0.0, 2.0 * sigma_t, 0.0, kC);
+  EXPECT_GT(b4.distance_std_m, 4.0 * b1.distance_std_m);
+  EXPECT_NEAR(b4x2.std_m / b4.std_m, 2.0, 1e-6);
+}
+
+TEST(AmilConfig, MethodNamesRoundTrip) {
+  for (auto m : {amil::Method::Paper, amil::Method::PaperJointSkew, amil::Method::Joint, amil::Method::Robust})
+    EXPECT_EQ(amil::parse_method(amil::to_string(m)), m);
+  EXPECT_FALSE(amil::parse_method("least_squares").has_value());
+  EXPECT_NEAR(amil::speed_of_sound_mps(20.0), 343.42, 1e-9);
+}
+
+TEST(AmilConfig, BadInputThrowsWithAReason) {
+  const auto beeps = triangle();
+  auto arr = arrivals(beeps, {0, 2}, 0.0);
+  arr.arrival_s.pop_back();
+  try {
+    amil::solve(beeps, arr, config(amil::Method::Robust));
+    FAIL() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("one per beep"), std::string::npos) << e.what();
+  }
+  const auto ok = arrivals(beeps, {0, 2}, 0.0);
+  auto cfg = config(amil::Method::Robust);
+  cfg.speed_of_sound_mps = -1;
+  EXPECT_THROW(amil::solve(beeps, ok, cfg), std::invalid_argument);
+  cfg = config(amil::Method::Paper);
+  cfg.direction_window_rad = 0.0;
+  EXPECT_THROW(amil::solve(beeps, ok, cfg), std::invalid_argument);
+  cfg = config(amil::Method::Joint);
+  cfg.max_range_m = cfg.min_range_m;
+  EXPECT_THROW(amil::solve(beeps, ok, cfg), std::invalid_argument);
+  // garbage measurements are not exceptions: NaN positions make beeps unusable
+  auto nb = beeps;
+  for (auto& b : nb) b.position_m = {std::nan(""), 0.0};
+  EXPECT_EQ(amil::solve(nb, ok, config(amil::Method::Robust)).status, amil::Status::Failed);
+}
