@@ -1,7 +1,7 @@
 // What `locus devices` lists: one entry per capture/playback PCM, JACK port, IIO device or BLE adapter
 // a backend can see. Each backend has its own list function (hal/<backend>/*_devices.hpp); the tool
 // prints them all. Listing never fails hard: a backend that cannot look (no JACK server running, no
-// system bus) returns one entry of kind "<backend>_unavailable" whose description says why.
+// system bus) returns one entry of kind "unavailable" whose description says why.
 #pragma once
 
 #include <string>

@@ -147,7 +147,7 @@ struct BluezScanner::Impl {
     self.malformed_.fetch_add(1, std::memory_order_relaxed);
     if (malformed_logged < kMaxMalformedLogs) {
       ++malformed_logged;
-      log->warn("bluez: ignored malformed data from bluetoothd: " + what +
+      log->warn("ignored malformed data from bluetoothd: " + what +
                 (malformed_logged == kMaxMalformedLogs ? " (further ones are only counted)" : ""));
     }
   }
@@ -237,7 +237,7 @@ struct BluezScanner::Impl {
   void on_managed_objects(std::uint64_t g, sdbus::MethodReply& reply, const sdbus::Error* err) {
     if (g != generation) return;
     if (err != nullptr) {
-      log->warn("bluez: GetManagedObjects on org.bluez failed (" + dbus_error_text(*err) + "); retrying in " +
+      log->warn("GetManagedObjects on org.bluez failed (" + dbus_error_text(*err) + "); retrying in " +
                 fmt_s(config.restart_backoff_s) + " s");
       schedule_retry();
       return;
@@ -260,7 +260,7 @@ struct BluezScanner::Impl {
         }
       have = have.empty() ? std::string("no adapter") : "adapters: " + have;
       if (!adapter_missing_logged || have != adapter_missing_have) {  // once, and again when the set changes
-        log->warn("bluez: adapter '" + config.adapter + "' (" + adapter_path + ") not found on the system bus " +
+        log->warn("adapter '" + config.adapter + "' (" + adapter_path + ") not found on the system bus " +
                   bus_address + " (bluetoothd has " + have + "); waiting for it, retrying every " +
                   fmt_s(config.restart_backoff_s) + " s");
         adapter_missing_logged = true;
@@ -275,7 +275,7 @@ struct BluezScanner::Impl {
     if (auto pw = aprops.find("Powered"); pw != aprops.end()) {
       try {
         if (!pw->second.isEmpty() && pw->second.peekValueType() == "b" && !pw->second.get<bool>())
-          log->warn("bluez: adapter " + config.adapter + " is powered off; discovery will fail until it is powered");
+          log->warn("adapter " + config.adapter + " is powered off; discovery will fail until it is powered");
       } catch (const sdbus::Error&) {
       }
     }
@@ -299,7 +299,7 @@ struct BluezScanner::Impl {
   void on_filter_set(std::uint64_t g, const sdbus::Error* err) {
     if (g != generation) return;
     if (err != nullptr) {
-      log->warn("bluez: SetDiscoveryFilter on " + adapter_path + " failed (" + dbus_error_text(*err) +
+      log->warn("SetDiscoveryFilter on " + adapter_path + " failed (" + dbus_error_text(*err) +
                 "); retrying in " + fmt_s(config.restart_backoff_s) + " s");
       schedule_retry();
       return;
@@ -313,7 +313,7 @@ struct BluezScanner::Impl {
     if (g != generation) return;
     // InProgress: this client's discovery session is already running (BlueZ keeps one per client).
     if (err != nullptr && err->getName() != "org.bluez.Error.InProgress") {
-      log->warn("bluez: StartDiscovery on " + adapter_path + " failed (" + dbus_error_text(*err) + "); retrying in " +
+      log->warn("StartDiscovery on " + adapter_path + " failed (" + dbus_error_text(*err) + "); retrying in " +
                 fmt_s(config.restart_backoff_s) + " s");
       schedule_retry();
       return;
@@ -325,7 +325,7 @@ struct BluezScanner::Impl {
     std::string filter = "Transport=le DuplicateData=" + std::string(config.duplicate_data ? "true" : "false");
     if (config.rssi_threshold_dbm != BluezConfig::kNoRssiThreshold)
       filter += " RSSI=" + std::to_string(config.rssi_threshold_dbm);
-    log->info(std::string("bluez: ") + (restarting ? "scanning again after bluetoothd came back" : "scanning") +
+    log->info(std::string() + (restarting ? "scanning again after bluetoothd came back" : "scanning") +
               " on " + config.adapter + " (" + filter + ", " +
               (config.addresses.empty() ? std::string("all devices") :
                                           std::to_string(config.addresses.size()) + " allowed addresses") + ")");
@@ -337,7 +337,7 @@ struct BluezScanner::Impl {
   void bluez_appeared(const std::string& owner) {
     bluez_owner = owner;
     if (bluez_seen) {
-      log->info("bluez: org.bluez is back on the system bus (" + owner + "); setting up discovery on " +
+      log->info("org.bluez is back on the system bus (" + owner + "); setting up discovery on " +
                 config.adapter + " again");
       restarting = true;
     }
@@ -347,7 +347,7 @@ struct BluezScanner::Impl {
   }
 
   void bluez_vanished() {
-    log->warn("bluez: bluetoothd (org.bluez, " + bluez_owner + ") left the system bus; scanning on " +
+    log->warn("bluetoothd (org.bluez, " + bluez_owner + ") left the system bus; scanning on " +
               config.adapter + " stopped, waiting for it to come back");
     self.bluez_losses_.fetch_add(1, std::memory_order_relaxed);
     bluez_owner.clear();
@@ -385,7 +385,7 @@ struct BluezScanner::Impl {
     }
     if (path == adapter_path && ifaces.count(kAdapterIface) != 0) {
       if (phase == Phase::NoAdapter || phase == Phase::Backoff) {
-        log->info("bluez: adapter " + config.adapter + " appeared; setting up discovery");
+        log->info("adapter " + config.adapter + " appeared; setting up discovery");
         begin_setup();
       }
       return;
@@ -407,7 +407,7 @@ struct BluezScanner::Impl {
     const bool adapter_gone =
         path == adapter_path && std::find(ifaces.begin(), ifaces.end(), kAdapterIface) != ifaces.end();
     if (adapter_gone) {
-      log->warn("bluez: adapter " + config.adapter + " was removed; waiting for it to come back");
+      log->warn("adapter " + config.adapter + " was removed; waiting for it to come back");
       reset_session();
       adapter_missing_logged = true;
       schedule_retry();
@@ -447,10 +447,10 @@ struct BluezScanner::Impl {
     const auto powered = read_bool("Powered");
     const auto discovering = read_bool("Discovering");
     if (powered == true && phase != Phase::Scanning && phase != Phase::Configuring && phase != Phase::Querying) {
-      log->info("bluez: adapter " + config.adapter + " was powered on; setting up discovery");
+      log->info("adapter " + config.adapter + " was powered on; setting up discovery");
       begin_setup();
     } else if (discovering == false && phase == Phase::Scanning) {
-      log->warn("bluez: discovery on " + config.adapter + " stopped (Discovering = false); restarting it in " +
+      log->warn("discovery on " + config.adapter + " stopped (Discovering = false); restarting it in " +
                 fmt_s(config.restart_backoff_s) + " s");
       reset_session();
       schedule_retry();
@@ -486,7 +486,7 @@ struct BluezScanner::Impl {
         [this](sdbus::MethodReply& reply, const sdbus::Error* err) {
           if (err != nullptr) {
             if (bluez_owner.empty())
-              log->warn("bluez: org.bluez is not on the system bus " + bus_address + " (" + dbus_error_text(*err) +
+              log->warn("org.bluez is not on the system bus " + bus_address + " (" + dbus_error_text(*err) +
                         "; is bluetoothd running?); waiting for it");
             return;
           }
@@ -657,7 +657,7 @@ void BluezScanner::run(SensorQueue&) {
     }
     s.stop_discovery();
     const Stats st = stats();
-    s.log->info("bluez: stopped scanning on " + s.config.adapter + ": " + std::to_string(st.adverts) + " adverts, " +
+    s.log->info("stopped scanning on " + s.config.adapter + ": " + std::to_string(st.adverts) + " adverts, " +
                 std::to_string(st.dropped_full) + " dropped (queue full), " + std::to_string(st.filtered) +
                 " filtered, " + std::to_string(st.malformed) + " malformed, " + std::to_string(st.bluez_losses) +
                 " bluetoothd restarts");

@@ -301,6 +301,12 @@ void SharedJackClient::detach(Part part) noexcept {
   }
   st.ports.fill(nullptr);
   st.attached = false;
+  if (st.log != nullptr) {
+    st.log->info(describe() + (part == Part::Capture ? " (capture)" : " (playback)") + ": " +
+                 std::to_string(processor_.xruns()) + " xruns, " + std::to_string(processor_.frames_lost()) +
+                 " frames lost (" + std::to_string(processor_.skip_events()) + " skipped-cycle events, " +
+                 std::to_string(processor_.resumes()) + " outages), " + std::to_string(reconnects()) + " reconnects");
+  }
   st.log = nullptr;
 }
 

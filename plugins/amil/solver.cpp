@@ -49,7 +49,6 @@ struct Fit {
   bool ok = false;
 };
 
-double model_distance(const Obs& o, int k, const Eigen::Vector2d& x) { return (x - o.p[static_cast<std::size_t>(k)]).norm(); }
 
 /// Variable projection: best (b, g) for a fixed x, and the weighted cost. W_k = w_k/σ_k².
 double varpro_cost(const Obs& o, const double* W, const Eigen::Vector2d& x, double* b_out = nullptr,
@@ -87,7 +86,7 @@ double varpro_cost(const Obs& o, const double* W, const Eigen::Vector2d& x, doub
 
 double varpro_cost(const Obs& o, const std::vector<double>& w, const Eigen::Vector2d& x, double* b_out = nullptr,
                    double* g_out = nullptr) {
-  double Wst[64];
+  double Wst[64] = {};
   std::vector<double> Wh;
   double* W = Wst;
   if (o.n() > 64) {
@@ -559,6 +558,52 @@ PaperResult paper_solve(const Obs& o, double skew, const SolverConfig& cfg) {
   return pr;
 }
 
+
+/// The heard beeps of one listener (beeps with a player time, a position and an arrival). With
+/// with_position_std the residual sigma includes the beep position error (per-listener solvers);
+/// without, only the timing error (the network solver estimates the position errors).
+Obs make_obs(const std::vector<Beep>& beeps, const ListenerArrivals& arr, const SolverConfig& cfg, bool with_position_std) {
+  const double c = cfg.speed_of_sound_mps;
+  const double tstd = std::isfinite(arr.timing_std_s) ? arr.timing_std_s : cfg.timing_std_s;
+  Obs o;
+  o.c = c;
+  for (std::size_t k = 0; k < beeps.size(); ++k) {
+    const Beep& b = beeps[k];
+    const double a = arr.arrival_s[k];
+    if (!std::isfinite(a) || !std::isfinite(b.player_time_s) || !b.position_m.allFinite()) continue;
+    const double pstd = with_position_std ? (std::isfinite(b.position_std_m) ? b.position_std_m : cfg.position_std_m) : 0.0;
+    o.p.push_back(b.position_m);
+    o.a.push_back(a);
+    o.e.push_back(b.player_time_s);
+    o.sigma.push_back(std::max(1e-7, std::sqrt(c * tstd * c * tstd + pstd * pstd)));
+    o.index.push_back(static_cast<int>(k));
+  }
+  for (int k = 0; k < o.n(); ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    o.de.push_back(o.e[ku] - o.e[0]);
+    o.cy.push_back(c * ((o.a[ku] - o.a[0]) - (o.e[ku] - o.e[0])));
+  }
+  return o;
+}
+
+/// Distance, direction and the direction-only decision of a solution with a position.
+void finish_position(Solution& s, const SolverConfig& cfg) {
+  const double r = s.position_m.norm();
+  s.distance_m = r;
+  s.direction_rad = std::atan2(s.position_m.y(), s.position_m.x());
+  const double rel = s.distance_std_m / std::max(r, 1e-9);
+  if (r > cfg.max_range_m || !(rel <= cfg.max_relative_distance_std)) {
+    s.status = Status::DirectionOnly;
+    s.note += r > cfg.max_range_m ? "distance beyond max_range_m: direction only"
+                                  : "distance not determined (relative std " + std::to_string(rel) + "): direction only";
+    s.position_m = Eigen::Vector2d(kNaN, kNaN);
+    s.distance_m = kNaN;
+    s.std_m = kNaN;
+  } else if (s.status != Status::Ambiguous) {
+    s.status = Status::Located;
+  }
+}
+
 void validate(const std::vector<Beep>& beeps, const ListenerArrivals& arr, const SolverConfig& cfg) {
   auto bad = [](const std::string& what) { throw std::invalid_argument("amil solver: " + what); };
   if (arr.arrival_s.size() != beeps.size())
@@ -584,12 +629,13 @@ const char* to_string(Method m) noexcept {
     case Method::PaperJointSkew: return "paper_joint_skew";
     case Method::Joint: return "joint";
     case Method::Robust: return "robust";
+    case Method::Network: return "network";
   }
   return "?";
 }
 
 std::optional<Method> parse_method(std::string_view name) noexcept {
-  for (Method m : {Method::Paper, Method::PaperJointSkew, Method::Joint, Method::Robust})
+  for (Method m : {Method::Paper, Method::PaperJointSkew, Method::Joint, Method::Robust, Method::Network})
     if (name == to_string(m)) return m;
   return std::nullopt;
 }
@@ -697,55 +743,22 @@ Solution solve(const std::vector<Beep>& beeps, const ListenerArrivals& arr, cons
   Solution sol;
   sol.method = cfg.method;
   const double c = cfg.speed_of_sound_mps;
-  const double tstd = std::isfinite(arr.timing_std_s) ? arr.timing_std_s : cfg.timing_std_s;
   const double given_skew = std::isfinite(arr.known_skew) ? arr.known_skew : cfg.known_skew;
   // ---- the heard beeps
-  Obs o;
-  o.c = c;
-  for (std::size_t k = 0; k < beeps.size(); ++k) {
-    const Beep& b = beeps[k];
-    const double a = arr.arrival_s[k];
-    if (!std::isfinite(a) || !std::isfinite(b.player_time_s) || !b.position_m.allFinite()) continue;
-    const double pstd = std::isfinite(b.position_std_m) ? b.position_std_m : cfg.position_std_m;
-    o.p.push_back(b.position_m);
-    o.a.push_back(a);
-    o.e.push_back(b.player_time_s);
-    o.sigma.push_back(std::max(1e-9, std::sqrt(c * tstd * c * tstd + pstd * pstd)));
-    o.index.push_back(static_cast<int>(k));
-  }
+  const Obs o = make_obs(beeps, arr, cfg, true);
   const int n = o.n();
   sol.beeps_heard = n;
-  for (int k = 0; k < n; ++k) {
-    const auto ku = static_cast<std::size_t>(k);
-    o.de.push_back(o.e[ku] - o.e[0]);
-    o.cy.push_back(c * ((o.a[ku] - o.a[0]) - (o.e[ku] - o.e[0])));
-  }
   if (n < 3) {
     sol.note = "only " + std::to_string(n) + " beeps heard (3 needed)";
     return sol;
   }
   Method method = cfg.method;
-  if ((method == Method::Joint || method == Method::Robust || method == Method::PaperJointSkew) && n < 4) {
+  if ((method != Method::Paper) && n < 4) {
     sol.note = "3 beeps heard: the skew cannot be estimated, paper method with the given skew; ";
     method = Method::Paper;
   }
 
-  auto finish_located = [&](Solution& s) {
-    const double r = s.position_m.norm();
-    s.distance_m = r;
-    s.direction_rad = std::atan2(s.position_m.y(), s.position_m.x());
-    const double rel = s.distance_std_m / std::max(r, 1e-9);
-    if (r > cfg.max_range_m || !(rel <= cfg.max_relative_distance_std)) {
-      s.status = Status::DirectionOnly;
-      s.note += r > cfg.max_range_m ? "distance beyond max_range_m: direction only" : "distance not determined (relative std " +
-                                                                                        std::to_string(rel) + "): direction only";
-      s.position_m = Eigen::Vector2d(kNaN, kNaN);
-      s.distance_m = kNaN;
-      s.std_m = kNaN;
-    } else if (s.status != Status::Ambiguous) {
-      s.status = Status::Located;
-    }
-  };
+  auto finish_located = [&](Solution& s) { finish_position(s, cfg); };
 
   if (method == Method::Paper || method == Method::PaperJointSkew) {
     double skew = given_skew;
@@ -799,8 +812,8 @@ Solution solve(const std::vector<Beep>& beeps, const ListenerArrivals& arr, cons
     return sol;
   }
 
-  // ---- Joint / Robust
-  const bool robust = method == Method::Robust;
+  // ---- Joint / Robust (Network for a lone listener)
+  const bool robust = method == Method::Robust || method == Method::Network;
   const JointResult jr = joint_solve(o, cfg, robust);
   if (!jr.fit.ok) {
     sol.note += "joint least squares did not converge";
@@ -848,6 +861,183 @@ Solution solve(const std::vector<Beep>& beeps, const ListenerArrivals& arr, cons
                                    : 0.5 * geometry_confidence(sol.direction_std_rad);
   sol.confidence = geo * fit_confidence(chi2, dof) * (sol.status == Status::Ambiguous ? 0.5 : 1.0);
   return sol;
+}
+
+
+NetworkSolution solve_network(const std::vector<Beep>& beeps, const std::vector<ListenerArrivals>& arrivals,
+                              const SolverConfig& cfg_in) {
+  SolverConfig cfg = cfg_in;
+  cfg.method = Method::Robust;
+  NetworkSolution out;
+  out.beep_correction_m.assign(beeps.size(), Eigen::Vector2d::Zero());
+  // 1. every listener on its own (robust joint): the start, and the answer for those left out
+  struct Member {
+    std::size_t listener;
+    Obs o;
+    Eigen::Vector4d q;
+  };
+  std::vector<Member> members;
+  for (std::size_t l = 0; l < arrivals.size(); ++l) {
+    out.listeners.push_back(solve(beeps, arrivals[l], cfg));
+    Obs o = make_obs(beeps, arrivals[l], cfg, true);
+    if (o.n() < 4) continue;
+    const JointResult jr = joint_solve(o, cfg, true);
+    if (!jr.fit.ok || jr.fit.x.norm() > cfg.max_range_m || std::abs(jr.fit.g / cfg.speed_of_sound_mps) > cfg.max_abs_skew) continue;
+    Obs ot = make_obs(beeps, arrivals[l], cfg, false);  // timing error only: positions are unknowns now
+    // keep the robust pass's outlier decisions
+    std::vector<int> keep;
+    for (int k = 0; k < ot.n(); ++k)
+      if (std::find(jr.dropped.begin(), jr.dropped.end(), ot.index[static_cast<std::size_t>(k)]) == jr.dropped.end()) keep.push_back(k);
+    Obs used = subset(ot, keep);
+    // re-reference b to this observation set (the first heard beep is the same unless it was dropped)
+    double b = 0, g = 0;
+    std::vector<double> w1(static_cast<std::size_t>(used.n()), 1.0);
+    varpro_cost(used, w1, jr.fit.x, &b, &g);
+    members.push_back({l, std::move(used), Eigen::Vector4d(jr.fit.x.x(), jr.fit.x.y(), b, g)});
+  }
+  const std::size_t K = beeps.size(), M = members.size();
+  out.listeners_in_network = static_cast<int>(M);
+  if (M < 3) {
+    out.note = "fewer than 3 listeners with a joint fit: per-listener solutions";
+    return out;
+  }
+  // 2. Gauss-Newton over all beep corrections δ_k (prior N(0, σ_p²) per axis) and every member's
+  //    (x, y, b, g); Huber IRLS on the timing residuals.
+  const std::size_t P = 2 * K + 4 * M;
+  Eigen::VectorXd theta = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(P));
+  for (std::size_t m = 0; m < M; ++m) theta.segment<4>(static_cast<Eigen::Index>(2 * K + 4 * m)) = members[m].q;
+  std::vector<double> prior_sd(K);
+  for (std::size_t k = 0; k < K; ++k)
+    prior_sd[k] = std::max(1e-5, std::isfinite(beeps[k].position_std_m) ? beeps[k].position_std_m : cfg.position_std_m);
+  std::vector<std::vector<double>> w(M);
+  for (std::size_t m = 0; m < M; ++m) w[m].assign(static_cast<std::size_t>(members[m].o.n()), 1.0);
+  const double c = cfg.speed_of_sound_mps;
+  Eigen::MatrixXd N;
+  Eigen::VectorXd grad;
+  auto build = [&](const Eigen::VectorXd& th, bool with_matrix) {
+    if (with_matrix) {
+      N.setZero(static_cast<Eigen::Index>(P), static_cast<Eigen::Index>(P));
+      grad.setZero(static_cast<Eigen::Index>(P));
+    }
+    double cost = 0;
+    for (std::size_t k = 0; k < K; ++k)
+      for (int a = 0; a < 2; ++a) {
+        const auto i = static_cast<Eigen::Index>(2 * k + static_cast<std::size_t>(a));
+        const double W = 1.0 / (prior_sd[k] * prior_sd[k]);
+        cost += W * th[i] * th[i];
+        if (with_matrix) {
+          N(i, i) += W;
+          grad[i] += W * th[i];
+        }
+      }
+    for (std::size_t m = 0; m < M; ++m) {
+      const Obs& o = members[m].o;
+      const auto base = static_cast<Eigen::Index>(2 * K + 4 * m);
+      const Eigen::Vector2d x = th.segment<2>(base);
+      const double b = th[base + 2], g = th[base + 3];
+      for (int k = 0; k < o.n(); ++k) {
+        const auto ku = static_cast<std::size_t>(k);
+        const auto bk = static_cast<Eigen::Index>(2 * static_cast<std::size_t>(o.index[ku]));
+        const Eigen::Vector2d pk = o.p[ku] + th.segment<2>(bk);
+        const Eigen::Vector2d diff = x - pk;
+        const double d = std::max(diff.norm(), 1e-9);
+        const double r = o.cy[ku] - b - g * (o.de[ku] + d / c) - d;
+        const double W = w[m][ku] / (o.sigma[ku] * o.sigma[ku]);
+        cost += W * r * r;
+        if (!with_matrix) continue;
+        const double f = 1.0 + g / c;
+        const Eigen::Vector2d jx = -f * diff / d;  // ∂r/∂x; ∂r/∂δ_k = −∂r/∂x
+        const Eigen::Index idx[6] = {base, base + 1, base + 2, base + 3, bk, bk + 1};
+        const double jv[6] = {jx.x(), jx.y(), -1.0, -(o.de[ku] + d / c), -jx.x(), -jx.y()};
+        for (int i = 0; i < 6; ++i) {
+          grad[idx[i]] += W * r * jv[i];
+          for (int j = 0; j < 6; ++j) N(idx[i], idx[j]) += W * jv[i] * jv[j];
+        }
+      }
+    }
+    return cost;
+  };
+  double cost = build(theta, true);
+  double lambda = 1e-4;
+  int it = 0;
+  for (int outer = 0; outer < 4; ++outer) {
+    for (int inner = 0; inner < 20; ++inner, ++it) {
+      bool improved = false;
+      for (int tries = 0; tries < 8 && !improved; ++tries) {
+        Eigen::MatrixXd A = N;
+        for (Eigen::Index i = 0; i < A.rows(); ++i) A(i, i) += lambda * std::max(N(i, i), 1e-12);
+        const Eigen::VectorXd step = A.ldlt().solve(-grad);
+        if (!step.allFinite()) {
+          lambda *= 10;
+          continue;
+        }
+        const Eigen::VectorXd tn = theta + step;
+        const double cn = build(tn, false);
+        if (cn <= cost) {
+          const double drop = cost - cn;
+          theta = tn;
+          cost = build(theta, true);
+          lambda = std::max(lambda / 10, 1e-10);
+          improved = true;
+          if (drop < 1e-9 * std::max(cost, 1.0)) inner = 1000;
+        } else {
+          lambda *= 10;
+        }
+      }
+      if (!improved) break;
+    }
+    // Huber weights from the current residuals
+    bool changed = false;
+    for (std::size_t m = 0; m < M; ++m) {
+      const Obs& o = members[m].o;
+      const auto base = static_cast<Eigen::Index>(2 * K + 4 * m);
+      for (int k = 0; k < o.n(); ++k) {
+        const auto ku = static_cast<std::size_t>(k);
+        const auto bk = static_cast<Eigen::Index>(2 * static_cast<std::size_t>(o.index[ku]));
+        const double d = (theta.segment<2>(base) - o.p[ku] - theta.segment<2>(bk)).norm();
+        const double r = o.cy[ku] - theta[base + 2] - theta[base + 3] * (o.de[ku] + d / c) - d;
+        const double z = std::abs(r) / o.sigma[ku];
+        const double wn = z <= cfg.huber_k ? 1.0 : cfg.huber_k / z;
+        if (std::abs(wn - w[m][ku]) > 1e-3) changed = true;
+        w[m][ku] = wn;
+      }
+    }
+    if (!changed) break;
+    cost = build(theta, true);
+  }
+  out.iterations = it;
+  // 3. covariance (a-priori sigmas, inflated by the fit when it is worse than they say)
+  int nres = 0;
+  for (const auto& mb : members) nres += mb.o.n();
+  const int dof = nres + static_cast<int>(2 * K) - static_cast<int>(P);
+  const double inflate = dof > 0 ? std::max(1.0, cost / dof) : 1.0;
+  Eigen::LDLT<Eigen::MatrixXd> ldlt(N);
+  const Eigen::MatrixXd cov = ldlt.solve(Eigen::MatrixXd::Identity(static_cast<Eigen::Index>(P), static_cast<Eigen::Index>(P)));
+  for (std::size_t k = 0; k < K; ++k) out.beep_correction_m[k] = theta.segment<2>(static_cast<Eigen::Index>(2 * k));
+  for (std::size_t m = 0; m < M; ++m) {
+    const auto base = static_cast<Eigen::Index>(2 * K + 4 * m);
+    Solution& s = out.listeners[members[m].listener];
+    const Solution before = s;
+    s = Solution{};
+    s.method = Method::Robust;
+    s.beeps_heard = before.beeps_heard;
+    s.beeps_used = members[m].o.n();
+    s.position_m = theta.segment<2>(base);
+    s.skew = theta[base + 3] / c;
+    s.skew_std = std::sqrt(std::max(0.0, cov(base + 3, base + 3) * inflate)) / c;
+    const Eigen::Matrix2d P2 = cov.block<2, 2>(base, base) * inflate;
+    if (P2.allFinite()) fill_uncertainty(s, P2);
+    s.note = "network solution (" + std::to_string(M) + " listeners, beep positions refined); ";
+    if (!before.alternatives.empty()) {
+      s.status = Status::Ambiguous;
+      s.alternatives = before.alternatives;
+    }
+    finish_position(s, cfg);
+    const double geo = s.located() ? geometry_confidence(s.std_m / std::max(s.distance_m, 0.1))
+                                   : 0.5 * geometry_confidence(s.direction_std_rad);
+    s.confidence = geo * fit_confidence(cost, dof) * (s.status == Status::Ambiguous ? 0.5 : 1.0);
+  }
+  return out;
 }
 
 }  // namespace locus::amil

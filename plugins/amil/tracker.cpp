@@ -43,7 +43,7 @@ bool Session::speaker_at(double t_s, Eigen::Vector3d& out_m, bool* in_pause) con
     }
     const Pause& after = pauses[k + 1];
     out_m = body + (after.speaker_m - after.body_m);
-    if (in_pause != nullptr) *in_pause = false;
+    if (in_pause != nullptr) *in_pause = t_s < m.t_active_start_s || t_s > m.t_active_end_s;
     return true;
   }
   return false;
@@ -132,6 +132,8 @@ void GestureTracker::end_bin() {
       move_.clear();
       for (const Sample& s : prev_bin_) move_.push_back(s);
       for (const Sample& s : bin_) move_.push_back(s);
+      active_start_ = bin_start_;
+      active_end_ = bin_end;
       start_movement(start);
     } else {
       // The previous bin is confirmed rest (one bin of lag keeps a movement's onset out of it).
@@ -151,6 +153,7 @@ void GestureTracker::end_bin() {
     }
   } else {
     quiet_run_ = active ? 0 : quiet_run_ + 1;
+    if (active) active_end_ = bin_end;
     if (quiet_run_ >= cfg_.quiet_bins) {
       end_movement(bin_end);  // the quiet bins belong to the movement, not to the new rest
       bin_.clear();
@@ -214,6 +217,8 @@ void GestureTracker::end_movement(double t_end) {
     Movement m;
     m.t_start_s = move_start_;
     m.t_end_s = t_end;
+    m.t_active_start_s = active_start_;
+    m.t_active_end_s = std::max(active_start_, active_end_);
     const Eigen::Matrix3d& L = s.level;
     const Eigen::Vector3d g_ref = L * (q_ * rest_a_);  // gravity + accelerometer bias, start frame
     const std::size_t n = move_.size();

@@ -67,7 +67,8 @@ struct Pause {
 
 /// One movement between two pauses.
 struct Movement {
-  double t_start_s = 0.0, t_end_s = 0.0;
+  double t_start_s = 0.0, t_end_s = 0.0;  ///< integration span (with the margins)
+  double t_active_start_s = 0.0, t_active_end_s = 0.0;  ///< first to last moving bin: outside it the phone rests
   Eigen::Vector3d displacement_m = Eigen::Vector3d::Zero();  ///< start frame
   double end_speed_mps = 0.0;   ///< |v(t_end)| before de-drift (size of the drift removed)
   std::vector<double> t_s;      ///< sample times of the integrated trajectory
@@ -84,8 +85,9 @@ struct Session {
   std::vector<Movement> movements;
 
   /// Where the speaker was at device-local time t: the pause holding t, or inside a movement the
-  /// interpolated trajectory (plus the speaker offset at the movement's end attitude). `in_pause`
-  /// tells which. t before the first pause or after the end returns false.
+  /// interpolated trajectory (plus the speaker offset at the movement's end attitude). `in_pause`:
+  /// false when t lies between the movement's first and last moving bin (the margins are rest).
+  /// t before the first pause or after the end returns false.
   bool speaker_at(double t_s, Eigen::Vector3d& out_m, bool* in_pause = nullptr) const;
 };
 
@@ -151,7 +153,7 @@ class GestureTracker {
   // movement in progress
   bool moving_ = false;
   int quiet_run_ = 0;
-  double move_start_ = 0.0;
+  double move_start_ = 0.0, active_start_ = 0.0, active_end_ = 0.0;
   std::vector<Sample> move_;
   // attitude of the body relative to the body at T (session open), integrated over every sample
   bool session_open_ = false;

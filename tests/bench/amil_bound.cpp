@@ -8,11 +8,14 @@
 //   locus_amil_bound [--gestures 1|3] [--sigma-samples 0.01,0.05,0.2,1] [--position-std-m 0]
 //                    [--skew-ppm 40] [--trials 300] [--seed 1] [--fs 44100]
 //
-// Methods in the Monte-Carlo: robust (joint position + skew, Huber), paper with the true skew given
-// (a perfect calibration table), paper without calibration. Columns: CRB direction std (deg) and
+// Methods in the Monte-Carlo: robust (joint position + skew, Huber, per listener), network (all 12
+// listeners at once with the beep positions refined, solve_network), paper with the true skew given
+// (a perfect calibration table), paper without calibration. Every trial is one gesture: the same
+// beep-position errors for all listeners. Columns: CRB direction std (deg) and
 // distance std (% of range); per method the mean direction error (deg), the median distance error
 // (% of range) and the fraction of trials with a position (not direction-only).
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -99,46 +102,66 @@ int main(int argc, char** argv) {
   for (double sig_samples : sigmas) {
     const double st = sig_samples / fs;
     std::printf("\n## sigma_t = %.3g samples (%.3g us per arrival)\n\n", sig_samples, st * 1e6);
-    std::printf("| listener (m) | CRB dir (deg) | CRB dist (%%) | robust | paper, true skew | paper, no calibration |\n");
-    std::printf("|---|---|---|---|---|---|\n");
-    for (const auto& x : grid) {
-      const auto bd = amil::cramer_rao(pos, times, x, 0.0, std::sqrt(2.0) * st, pos_std, c);
-      std::printf("| (%.2f, %.2f) | %.3f | %.1f |", x.x(), x.y(), bd.direction_std_rad * deg,
-                  100.0 * bd.distance_std_m / x.norm());
-      struct Acc {
-        std::vector<double> dir, dist;
-        int located = 0;
-      };
-      Acc acc[3];
-      for (int t = 0; t < trials; ++t) {
+    std::printf("| listener (m) | CRB dir (deg) | CRB dist (%%) | robust | network | paper, true skew | paper, no calibration |\n");
+    std::printf("|---|---|---|---|---|---|---|\n");
+    // per listener and method: direction errors, distance errors, located count
+    constexpr int kMethods = 4;  // robust, network, paper (true skew), paper (no calibration)
+    struct Acc {
+      std::vector<double> dir, dist;
+      int located = 0;
+    };
+    std::vector<std::array<Acc, kMethods>> acc(grid.size());
+    for (int t = 0; t < trials; ++t) {
+      // one gesture: the same beep-position errors for every listener
+      std::vector<amil::Beep> beeps;
+      for (std::size_t k = 0; k < pos.size(); ++k) {
+        amil::Beep b;
+        b.position_m = pos[k] + pos_std * Eigen::Vector2d(N(rng), N(rng));  // what the IMU says
+        b.player_time_s = times[k] + st * N(rng);
+        beeps.push_back(b);
+      }
+      std::vector<amil::ListenerArrivals> arrs;
+      std::vector<double> skews;
+      for (const auto& x : grid) {
         const double skew = U(rng);
-        std::vector<amil::Beep> beeps;
-        for (std::size_t k = 0; k < pos.size(); ++k) {
-          amil::Beep b;
-          b.position_m = pos[k] + pos_std * Eigen::Vector2d(N(rng), N(rng));  // what the IMU says
-          b.player_time_s = times[k] + st * N(rng);
-          beeps.push_back(b);
-        }
         amil::ListenerArrivals arr;
         for (std::size_t k = 0; k < pos.size(); ++k)  // the truth: emitted at times[k] from pos[k]
           arr.arrival_s.push_back(0.7 + (1.0 + skew) * (times[k] + (x - pos[k]).norm() / c) + st * N(rng));
-        for (int m = 0; m < 3; ++m) {
-          amil::SolverConfig cfg;
-          cfg.speed_of_sound_mps = c;
-          cfg.timing_std_s = std::max(std::sqrt(2.0) * st, 1e-9);
-          cfg.position_std_m = pos_std;
-          cfg.method = m == 0 ? amil::Method::Robust : amil::Method::Paper;
-          cfg.known_skew = m == 1 ? skew : 0.0;
-          const auto s = amil::solve(beeps, arr, cfg);
+        arrs.push_back(arr);
+        skews.push_back(skew);
+      }
+      amil::SolverConfig cfg;
+      cfg.speed_of_sound_mps = c;
+      cfg.timing_std_s = std::max(std::sqrt(2.0) * st, 1e-9);
+      cfg.position_std_m = std::max(pos_std, 1e-4);
+      const auto net = amil::solve_network(beeps, arrs, cfg);
+      for (std::size_t l = 0; l < grid.size(); ++l) {
+        const auto& x = grid[l];
+        for (int m = 0; m < kMethods; ++m) {
+          amil::Solution s;
+          if (m == 1) s = net.listeners[l];
+          else {
+            amil::SolverConfig cm = cfg;
+            cm.method = m == 0 ? amil::Method::Robust : amil::Method::Paper;
+            cm.known_skew = m == 2 ? skews[l] : 0.0;
+            s = amil::solve(beeps, arrs[l], cm);
+          }
+          auto& a = acc[l][static_cast<std::size_t>(m)];
           if (std::isfinite(s.direction_rad))
-            acc[m].dir.push_back(std::abs(std::remainder(s.direction_rad - std::atan2(x.y(), x.x()), 2 * std::numbers::pi)) * deg);
+            a.dir.push_back(std::abs(std::remainder(s.direction_rad - std::atan2(x.y(), x.x()), 2 * std::numbers::pi)) * deg);
           if (s.located()) {
-            ++acc[m].located;
-            acc[m].dist.push_back(100.0 * std::abs(s.distance_m - x.norm()) / x.norm());
+            ++a.located;
+            a.dist.push_back(100.0 * std::abs(s.distance_m - x.norm()) / x.norm());
           }
         }
       }
-      for (auto& a : acc) {
+    }
+    for (std::size_t l = 0; l < grid.size(); ++l) {
+      const auto& x = grid[l];
+      const auto bd = amil::cramer_rao(pos, times, x, 0.0, std::sqrt(2.0) * st, pos_std, c);
+      std::printf("| (%.2f, %.2f) | %.3f | %.1f |", x.x(), x.y(), bd.direction_std_rad * deg,
+                  100.0 * bd.distance_std_m / x.norm());
+      for (auto& a : acc[l]) {
         double mean_dir = 0;
         for (double d : a.dir) mean_dir += d;
         mean_dir = a.dir.empty() ? std::nan("") : mean_dir / static_cast<double>(a.dir.size());

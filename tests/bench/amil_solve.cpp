@@ -10,7 +10,8 @@
 //    "listeners": [{"id": "L1", "a": [t_s | null, ...], "known_skew": s (optional)}, ...]}
 // One output line per (listener, method):
 //   {"name", "id", "method", "status", "x", "y", "direction_rad", "distance_m", "std_m", "skew", "note"}
-// The methods: paper (skew = known_skew when given, else 0), paper_joint_skew, joint, robust.
+// The methods: paper (skew = known_skew when given, else 0), paper_joint_skew, joint, robust, and
+// network (solve_network over all listeners of the problem).
 #include <cmath>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -45,6 +46,25 @@ int main() {
         beep.player_time_s = num_or_nan(b.at("e"));
         beeps.push_back(beep);
       }
+      auto emit = [&](const std::string& id, amil::Method m, const amil::Solution& s) {
+        json out{{"name", pj.value("name", "")},
+                 {"id", id},
+                 {"method", amil::to_string(m)},
+                 {"status", amil::to_string(s.status)},
+                 {"x", finite_or_null(s.position_m.x())},
+                 {"y", finite_or_null(s.position_m.y())},
+                 {"direction_rad", finite_or_null(s.direction_rad)},
+                 {"distance_m", finite_or_null(s.distance_m)},
+                 {"std_m", finite_or_null(s.std_m)},
+                 {"distance_std_m", finite_or_null(s.distance_std_m)},
+                 {"skew", finite_or_null(s.skew)},
+                 {"confidence", s.confidence},
+                 {"beeps_used", s.beeps_used},
+                 {"note", s.note}};
+        std::cout << out.dump() << '\n';
+      };
+      std::vector<amil::ListenerArrivals> all;
+      std::vector<std::string> ids;
       for (const auto& l : pj.at("listeners")) {
         amil::ListenerArrivals arr;
         for (const auto& a : l.at("a")) arr.arrival_s.push_back(num_or_nan(a));
@@ -54,24 +74,15 @@ int main() {
           cfg.method = m;
           amil::ListenerArrivals la = arr;
           la.known_skew = m == amil::Method::Paper ? known : std::nan("");
-          const amil::Solution s = amil::solve(beeps, la, cfg);
-          json out{{"name", pj.value("name", "")},
-                   {"id", l.at("id")},
-                   {"method", amil::to_string(m)},
-                   {"status", amil::to_string(s.status)},
-                   {"x", finite_or_null(s.position_m.x())},
-                   {"y", finite_or_null(s.position_m.y())},
-                   {"direction_rad", finite_or_null(s.direction_rad)},
-                   {"distance_m", finite_or_null(s.distance_m)},
-                   {"std_m", finite_or_null(s.std_m)},
-                   {"distance_std_m", finite_or_null(s.distance_std_m)},
-                   {"skew", finite_or_null(s.skew)},
-                   {"confidence", s.confidence},
-                   {"beeps_used", s.beeps_used},
-                   {"note", s.note}};
-          std::cout << out.dump() << '\n';
+          emit(l.at("id").get<std::string>(), m, amil::solve(beeps, la, cfg));
         }
+        all.push_back(arr);
+        ids.push_back(l.at("id").get<std::string>());
       }
+      amil::SolverConfig cfg = base;
+      cfg.method = amil::Method::Network;
+      const auto net = amil::solve_network(beeps, all, cfg);
+      for (std::size_t i = 0; i < ids.size(); ++i) emit(ids[i], amil::Method::Network, net.listeners[i]);
     } catch (const std::exception& e) {
       std::cerr << "locus_amil_solve: stdin:" << lineno << ": " << e.what() << '\n';
       return 2;

@@ -174,7 +174,7 @@ TEST_F(ConfigTest, UnknownKeySuggestsTheClosest) {
 TEST_F(ConfigTest, UnknownTopLevelKey) {
   const auto e = errors("devices:\n  - id: A\nlog_levl: debug\nfoo: 1\n");
   ASSERT_EQ(e.size(), 2u);
-  const std::string known = "(known keys: sample_rate_hz, log_level, plugin_dirs, output, devices, localizers)";
+  const std::string known = "(known keys: sample_rate_hz, log_level, plugin_dirs, output, link, outputs, devices, localizers)";
   EXPECT_CONFIG_ERROR(e[0], 3, 1, "log_levl", "unknown key 'log_levl'; did you mean 'log_level'? " + known);
   EXPECT_CONFIG_ERROR(e[1], 4, 1, "foo", "unknown key 'foo' " + known);
 }

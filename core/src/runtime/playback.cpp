@@ -64,7 +64,14 @@ std::size_t PlaybackScheduler::reclaim() {
 
 void PlaybackScheduler::take_new_clips() noexcept {
   Clip* c = nullptr;
-  while (active_count_ < active_.size() && incoming_.try_pop(c)) active_[active_count_++] = c;
+  const std::uint64_t now = frame_.load(std::memory_order_relaxed);
+  while (active_count_ < active_.size() && incoming_.try_pop(c)) {
+    if (c->start_frame < now) {
+      c->cut = true;  // its beginning was due before the RT side saw it: cut
+      late_.fetch_add(1, std::memory_order_relaxed);
+    }
+    active_[active_count_++] = c;
+  }
 }
 
 template <typename Write>
@@ -76,10 +83,6 @@ void PlaybackScheduler::render_common(std::uint32_t frames, Write&& write) noexc
   while (i < active_count_) {
     Clip* c = active_[i];
     const std::uint64_t c_end = c->start_frame + c->samples.size();
-    if (!c->cut && c->start_frame < first) {
-      c->cut = true;  // its beginning was already due before this block: cut
-      late_.fetch_add(1, std::memory_order_relaxed);
-    }
     if (c->start_frame < end && c_end > first) {
       const std::uint64_t from = std::max(first, c->start_frame);
       const std::uint64_t to = std::min(end, c_end);

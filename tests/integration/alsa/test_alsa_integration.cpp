@@ -14,6 +14,7 @@
 //    reported (not asserted zero), and the stream clock accounts for every frame.
 #include <fcntl.h>
 #include <gtest/gtest.h>
+#include <jack/jack.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -656,6 +657,31 @@ TEST(AlsaJack, AnOverrunIsRecoveredCountedAndItsFramesReportedLost) {
               static_cast<double>(n.frames_lost) / kRate, n.timestamps_valid ? "of the PCM" : "of the host clock");
 }
 
+/// jackd's own frame counter (the "device clock" of a `jack` PCM), read through a JACK client.
+class JackClock {
+ public:
+  explicit JackClock(const std::string& server) {
+    jack_status_t status{};
+    client_ = jack_client_open("locus_alsa_clock", static_cast<jack_options_t>(JackNoStartServer | JackServerName),
+                               &status, server.c_str());
+    if (client_ && jack_activate(client_) != 0) {
+      jack_client_close(client_);
+      client_ = nullptr;
+    }
+  }
+  ~JackClock() {
+    if (client_) {
+      jack_deactivate(client_);
+      jack_client_close(client_);
+    }
+  }
+  bool ok() const { return client_ != nullptr; }
+  std::uint64_t now() const { return jack_frame_time(client_); }
+
+ private:
+  jack_client_t* client_ = nullptr;
+};
+
 TEST(AlsaJack, AnUnderrunIsRecoveredAndSkippedSoThePlaybackClockKeepsTime) {
   const std::string server = "locus_alsa_urun_" + std::to_string(::getpid());
   Jackd jackd(server, kRate, 256);
@@ -677,24 +703,29 @@ TEST(AlsaJack, AnUnderrunIsRecoveredAndSkippedSoThePlaybackClockKeepsTime) {
   SpscQueue<AlsaNotice> notices(16);
   std::atomic<bool> stop{false};
   PlaybackLoop loop(pcm.get(), pcm.setup(), scheduler, counters, &notices, 0, 5.0, &stop);
-  Clock::time_point t_first{};
+  JackClock jack_clock(server);
+  ASSERT_TRUE(jack_clock.ok()) << "cannot open a JACK client to read the device clock";
+  std::uint64_t jack_first = 0;
+  bool started = false;
   auto run_for = [&](double seconds) {
     const auto until = Clock::now() + std::chrono::duration<double>(seconds);
     while (Clock::now() < until) {
       const PlaybackLoop::Status st = loop.step(20);
-      if (t_first == Clock::time_point{} && snd_pcm_state(pcm.get()) == SND_PCM_STATE_RUNNING) t_first = Clock::now();
+      if (!started && snd_pcm_state(pcm.get()) == SND_PCM_STATE_RUNNING) {
+        started = true;
+        jack_first = jack_clock.now();
+      }
       ASSERT_NE(st, PlaybackLoop::Status::DeviceLost) << alsa_error_text(loop.error());
     }
   };
   run_for(0.5);
   const std::uint64_t before = scheduler.frame();
   const auto t_sleep = Clock::now();
-  if (std::getenv("LOCUS_ALSA_NO_SLEEP") == nullptr)
   std::this_thread::sleep_for(std::chrono::milliseconds(400));  // the device runs dry: an underrun
   const double slept_s = std::chrono::duration<double>(Clock::now() - t_sleep).count();
   run_for(0.5);
-  const double elapsed_s = std::chrono::duration<double>(Clock::now() - t_first).count();
   const std::uint64_t frame = scheduler.frame();
+  const double elapsed_s = static_cast<double>(jack_clock.now() - jack_first) / kRate;  // on the device clock
   ::unsetenv("JACK_DEFAULT_SERVER");
   EXPECT_GE(counters.xruns.load(), 1u);
   AlsaNotice n;
@@ -704,13 +735,15 @@ TEST(AlsaJack, AnUnderrunIsRecoveredAndSkippedSoThePlaybackClockKeepsTime) {
   // The device was starved for the sleep minus the buffer it held: that much was skipped.
   EXPECT_GE(n.frames_lost, static_cast<std::uint64_t>((slept_s - 0.15) * kRate));
   EXPECT_LE(n.frames_lost, static_cast<std::uint64_t>((slept_s + 0.15) * kRate));
-  // The playback clock (scheduler frame) stays with the device: the frames rendered ahead are at most
-  // the buffer (plus a period in hand), whatever the underrun did.
+  // The playback clock (scheduler frame) stays with the device's (jackd's frame counter): without the
+  // skip it would fall behind by the whole stall (0.4 s), with a double count run 0.4 s ahead. The
+  // dummy driver's cycles jitter on this busy host (measured -0.12..+0.08 s over 1.3 s), and its pace
+  // differs from the wall clock by a few %, hence the margins and the device clock as reference.
   const double ahead_s = static_cast<double>(frame) / kRate - elapsed_s;
-  EXPECT_GT(ahead_s, -0.1);
-  EXPECT_LT(ahead_s, 0.1 + static_cast<double>(pcm.setup().buffer_frames) / kRate);
+  EXPECT_GT(ahead_s, -0.25);
+  EXPECT_LT(ahead_s, 0.25);
   std::printf("[ alsa ] underrun after a %.3f s stall: %llu xrun(s), %llu frames skipped (%.3f s, timestamps %s); "
-              "playback clock %.3f s ahead of the wall clock after %.2f s\n",
+              "playback clock %.3f s ahead of the device clock after %.2f s\n",
               slept_s, static_cast<unsigned long long>(counters.xruns.load()),
               static_cast<unsigned long long>(n.frames_lost), static_cast<double>(n.frames_lost) / kRate,
               n.timestamps_valid ? "of the PCM" : "of the host clock", ahead_s, elapsed_s);

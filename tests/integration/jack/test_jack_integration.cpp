@@ -82,6 +82,11 @@ class Jackd {
   }
   ~Jackd() {
     stop();
+    if (killed_) {
+      // A SIGKILLed jackd leaves its entry in JACK's machine-wide server registry (8 slots, reclaimed
+      // only by a server of the same name): start and stop one cleanly to give the slot back.
+      if (start().empty()) stop();
+    }
     remove_shm();
     std::error_code ec;
     fs::remove(log_, ec);
@@ -90,6 +95,7 @@ class Jackd {
 
   /// "" when the server answers a client within 10 s, else why not.
   std::string start() {
+    killed_ = false;
     pid_ = ::fork();
     if (pid_ < 0) return "fork failed";
     if (pid_ == 0) {
@@ -128,6 +134,7 @@ class Jackd {
   }
   void kill9() {
     if (pid_ <= 0) return;
+    killed_ = true;
     ::kill(pid_, SIGKILL);
     ::waitpid(pid_, nullptr, 0);
     pid_ = -1;
@@ -163,6 +170,7 @@ class Jackd {
   std::string name_, log_;
   int rate_;
   pid_t pid_ = -1;
+  bool killed_ = false;
 };
 
 // ------------------------------------------------------------------ other JACK clients

@@ -124,11 +124,12 @@ TEST(MqttLinkBroker, TwoEndpointsExchangeBothWaysWithWildcards) {
   Broker broker(dir.path(), {});
   broker.start();
   TestLogger log;
+  // Receivers first: they must outlive the links whose handlers write to them.
+  Inbox a_pos, a_self, b_beep, b_beep_one, b_beep_one_again, other_all;
   MqttLink a(options_for(broker), "locus", log);
   MqttLink b(options_for(broker), "locus", log);
   EXPECT_NE(a.connection().client_id(), b.connection().client_id());
 
-  Inbox a_pos, a_self, b_beep, b_beep_one, b_beep_one_again;
   a.subscribe("pos/+", a_pos.handler());
   a.subscribe("self/#", a_self.handler());
   b.subscribe("beep/#", b_beep.handler());
@@ -163,7 +164,6 @@ TEST(MqttLinkBroker, TwoEndpointsExchangeBothWaysWithWildcards) {
 
   // Another prefix is another deployment: it hears nothing of "locus".
   MqttLink other(options_for(broker), "other", log);
-  Inbox other_all;
   other.subscribe("#", other_all.handler());
   ASSERT_TRUE(other.wait_ready(10));
   a.publish("beep/A/3", "3");
@@ -187,16 +187,16 @@ TEST(MqttLinkBroker, UnsubscribeWaitsForARunningHandlerAndStopsDelivery) {
   Broker broker(dir.path(), {});
   broker.start();
   TestLogger log;
-  MqttLink a(options_for(broker), "locus", log);
   std::atomic<bool> started{false}, finished{false};
   std::atomic<int> calls{0};
+  Inbox marker;
+  MqttLink a(options_for(broker), "locus", log);
   const auto id = a.subscribe("slow", [&](const LinkMessage&) {
     ++calls;
     started = true;
     std::this_thread::sleep_for(300ms);
     finished = true;
   });
-  Inbox marker;
   a.subscribe("marker", marker.handler());
   ASSERT_TRUE(a.wait_ready(10));
   a.publish("slow", "1");
@@ -221,9 +221,9 @@ TEST(MqttLinkBroker, BothEndpointsSurviveABrokerRestart) {
   ao.reconnect_min_s = ao.reconnect_max_s = 4.0;
   MqttOptions bo = options_for(broker);
   bo.reconnect_min_s = bo.reconnect_max_s = 0.1;
+  Inbox a_in, b_in;
   MqttLink a(ao, "locus", log);
   MqttLink b(bo, "locus", log);
-  Inbox a_in, b_in;
   a.subscribe("data/#", a_in.handler());
   b.subscribe("data/#", b_in.handler());
   ASSERT_TRUE(a.wait_ready(10) && b.wait_ready(10));
@@ -265,8 +265,8 @@ TEST(MqttLinkBroker, OfflineQueueIsBoundedAndCountsDrops) {
   TestLogger log;
   MqttOptions o = options_for(broker);
   o.queue_limit = 3;
-  MqttLink a(o, "locus", log);
   Inbox in;
+  MqttLink a(o, "locus", log);
   a.subscribe("q/#", in.handler());
   ASSERT_TRUE(a.wait_ready(10));
   broker.kill_hard();
@@ -306,8 +306,8 @@ TEST(MqttLinkBroker, WrongPasswordIsRefused) {
 
   o.username = "alice";
   o.password = "s3cret";
-  MqttLink ok(o, "locus", log);
   Inbox in;
+  MqttLink ok(o, "locus", log);
   ok.subscribe("t", in.handler());
   ASSERT_TRUE(ok.wait_ready(10));
   ok.publish("t", "authorized");
@@ -327,9 +327,9 @@ TEST(MqttLinkBroker, Tls) {
   MqttOptions o = options_for(broker);
   o.tls_ca_file = broker.ca_file().string();
   {
+    Inbox in;
     MqttLink a(o, "locus", log);
     MqttLink b(o, "locus", log);
-    Inbox in;
     b.subscribe("secure/+", in.handler());
     ASSERT_TRUE(b.wait_ready(10));
     a.publish("secure/x", "over TLS");

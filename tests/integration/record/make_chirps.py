@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Writes the signal the record integration test plays into JACK: a mono float32 WAV at 44100 Hz with
 LFM chirps 2->8 kHz, 40 ms, 5 ms raised-cosine fades, amplitude 0.5 (the `chirp` detector's default
-template; formula of docs/scene-format.md "Signals"), starting at the frames listed in STARTS.
+template; formula of docs/scene-format.md "Signals"), starting at the frames listed in STARTS, over
+white Gaussian noise at -60 dBFS (fixed seed): a microphone never delivers digital silence, and every
+frame of the file is non-zero, so its first frame marks where it lands in a recording.
 Usage: make_chirps.py OUT.wav  (prints the start frames, one per line)"""
 import sys
 
@@ -12,6 +14,7 @@ FS = 44100
 STARTS = [4410, 26460, 48510]
 LENGTH = 66150
 F0, F1, D, FADE, AMP = 2000.0, 8000.0, 0.040, 0.005, 0.5
+NOISE_RMS = 10 ** (-60 / 20)
 
 
 def chirp():
@@ -28,7 +31,7 @@ def chirp():
 
 
 def main():
-    x = np.zeros(LENGTH)
+    x = np.random.default_rng(20261122).normal(0.0, NOISE_RMS, LENGTH)
     c = chirp()
     for s in STARTS:
         x[s:s + len(c)] += c

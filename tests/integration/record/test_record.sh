@@ -66,7 +66,7 @@ devices:
   - id: J
     audio:
       source: jack
-      params: {server: "$SERVER", client_name: "locus_rec_$$", channels: 1, connect: "$PLAYER_NAME:out"}
+      params: {server: "$SERVER", client_name: "recorder_$$", channels: 1, connect: "$PLAYER_NAME:out"}
 YAML
 cat > "$TMP/chirp.yaml" <<'YAML'
 log_level: warn
@@ -149,5 +149,9 @@ check "no server: the error names the device and the source" grep -q "device 'J'
 check "no server: nothing recorded" test ! -e "$TMP/rec3"
 
 if grep -qi xrun "$TMP/jackd.log"; then echo "info jackd reported xruns: $(grep -ci xrun "$TMP/jackd.log")"; fi
+if [ $fails -ne 0 ]; then
+  echo "--- jackd log"; tail -n 30 "$TMP/jackd.log"
+  kill -0 "$JACKD_PID" 2> /dev/null && echo "(jackd still running)" || echo "(jackd is gone)"
+fi
 echo "$fails failure(s)"
 [ $fails -eq 0 ]
