@@ -168,6 +168,25 @@ double CaptureLoop::status_trigger_s(snd_pcm_state_t* state, snd_pcm_uframes_t* 
   return to_seconds(t);
 }
 
+void CaptureLoop::estimate_frame_zero(std::uint64_t frames_read_now) noexcept {
+  // At time t the device had captured up to stream frame base + produced (incl. this read) + avail:
+  // that frame is the one being captured at t. The htimestamp is taken at the last hardware pointer
+  // update, with the avail of that moment (snd_pcm_htimestamp), on CLOCK_MONOTONIC (sw params).
+  const double now = monotonic_s();
+  snd_pcm_uframes_t avail = 0;
+  snd_htimestamp_t ts{};
+  double t = 0.0;
+  if (snd_pcm_htimestamp(pcm_, &avail, &ts) == 0) t = to_seconds(ts);
+  if (!(t > 0.0 && t <= now + 1e-3 && t >= now - 10.0)) {  // plugin PCMs may give none: use the clock now
+    t = now;
+    const snd_pcm_sframes_t a = snd_pcm_avail_update(pcm_);
+    avail = a > 0 ? static_cast<snd_pcm_uframes_t>(a) : 0;
+  }
+  const std::uint64_t captured = base_frames_ + produced_ + frames_read_now + avail;
+  frame_zero_out_->store(t - static_cast<double>(captured) / setup_.rate_hz, std::memory_order_release);
+  frame_zero_out_ = nullptr;  // once per loop
+}
+
 bool CaptureLoop::start() noexcept {
   const double t_call = monotonic_s();
   snd_pcm_state_t state = snd_pcm_state(pcm_);
@@ -265,6 +284,7 @@ CaptureLoop::Status CaptureLoop::step(int wait_ms) noexcept {
   snd_pcm_sframes_t n = snd_pcm_readi(pcm_, raw_.data(), want);
   if (n > 0) {
     const auto frames = static_cast<std::size_t>(n);
+    if (frame_zero_out_ != nullptr) estimate_frame_zero(frames);  // before the frames become visible
     raw_to_float(setup_.format, raw_.data(), samples_.data(), frames * setup_.channels);
     ring_.write(samples_.data(), frames);  // a full ring reports the rest lost (write_lost)
     produced_ += frames;
@@ -331,6 +351,7 @@ void AlsaSource::start(AudioRing& ring) {
   ring_ = &ring;
   stop_.store(false, std::memory_order_release);
   finished_.store(false, std::memory_order_release);
+  frame_zero_s_.store(std::numeric_limits<double>::quiet_NaN(), std::memory_order_release);
   supervisor_ = std::thread([this] { supervise(); });
 }
 
@@ -389,6 +410,8 @@ void AlsaSource::supervise() {
     const std::uint64_t remaining = config_.max_frames == 0 ? 0 : config_.max_frames - produced_total;
     CaptureLoop loop(pcm_.get(), setup_, *ring_, *counters_, notices_.get(), remaining, config_.stall_timeout_s,
                      &stop_, gap_since);
+    // The origin is taken once per stream (later loops continue its frame count through the gap).
+    if (std::isnan(frame_zero_s_.load(std::memory_order_acquire))) loop.publish_frame_zero(&frame_zero_s_, produced_total);
     std::atomic<bool> done{false};
     CaptureLoop::Status status = CaptureLoop::Status::Stopped;
     bool rt_ok = true;

@@ -30,6 +30,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <thread>
@@ -107,6 +108,14 @@ class CaptureLoop {
   std::uint64_t frames_read() const noexcept { return read_; }
   int error() const noexcept { return error_; }                        ///< why DeviceLost (negative errno)
   double last_data_s() const noexcept { return last_data_s_; }        ///< monotonic time of the last frames
+  /// [main, before the first step()] On the first frames read, publish into `out` the CLOCK_MONOTONIC
+  /// time of stream frame 0, given that this loop's first frame is stream frame `base_frames`: from the
+  /// PCM's htimestamp (monotonic, see alsa_pcm.cpp) and the frames captured by then (read + avail);
+  /// without a usable timestamp, from the loop's clock at that moment. nullptr: publish nothing.
+  void publish_frame_zero(std::atomic<double>* out, std::uint64_t base_frames) noexcept {
+    frame_zero_out_ = out;
+    base_frames_ = base_frames;
+  }
 
  private:
   bool start() noexcept;
@@ -114,6 +123,7 @@ class CaptureLoop {
   void notify(const AlsaNotice& n) noexcept;
   double status_trigger_s(snd_pcm_state_t* state, snd_pcm_uframes_t* avail) noexcept;
   void lose(std::uint64_t frames) noexcept;
+  void estimate_frame_zero(std::uint64_t frames_read_now) noexcept;
 
   snd_pcm_t* pcm_;
   PcmSetup setup_;
@@ -132,6 +142,8 @@ class CaptureLoop {
   std::uint64_t read_ = 0;
   double last_data_s_ = 0.0;
   int error_ = 0;
+  std::atomic<double>* frame_zero_out_ = nullptr;
+  std::uint64_t base_frames_ = 0;
 };
 
 class AlsaSource final : public AudioSource {
@@ -150,6 +162,9 @@ class AlsaSource final : public AudioSource {
   void stop() override;
   bool finished() const noexcept override { return finished_.load(std::memory_order_acquire); }
   std::string error() const override;
+  /// Stream frame 0's CLOCK_MONOTONIC time, set from the first frames read (CaptureLoop::
+  /// publish_frame_zero); a reopen after a device loss keeps it (the gap is counted as lost frames).
+  double frame_zero_monotonic_s() const noexcept override { return frame_zero_s_.load(std::memory_order_acquire); }
 
   /// [any] Counters (xruns, frames lost, device losses, reconnects).
   const AlsaCounters& counters() const noexcept { return *counters_; }
@@ -173,6 +188,7 @@ class AlsaSource final : public AudioSource {
   std::atomic<bool> finished_{false};
   std::atomic<bool> has_error_{false};
   std::string error_;  // written by the supervisor before has_error_ (release)
+  std::atomic<double> frame_zero_s_{std::numeric_limits<double>::quiet_NaN()};
 };
 
 }  // namespace locus::hal::alsa

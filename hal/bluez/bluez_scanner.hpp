@@ -76,6 +76,8 @@ class BluezScanner final : public SensorSource {
   void open(const BluezConfig& config, HostContext& ctx);
   SensorKind kind() const override { return SensorKind::Ble; }
   bool live() const override { return true; }
+  /// t_s is CLOCK_MONOTONIC at the read (see above).
+  bool monotonic_time() const override { return true; }
   void start(SensorQueue& queue) override;
   void stop() override;
   bool finished() const noexcept override { return finished_.load(std::memory_order_acquire); }

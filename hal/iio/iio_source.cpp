@@ -219,6 +219,7 @@ void IioImuSource::open(const Params& params, HostContext& ctx) {
   have_mag_stream_ = false;
   polled_mag_ = false;
   opened_ = false;
+  monotonic_time_ = false;
   {
     std::lock_guard lock(error_mutex_);
     error_.clear();
@@ -316,6 +317,11 @@ void IioImuSource::open(const Params& params, HostContext& ctx) {
         throw IioError(dev_.dir + ": no in_timestamp scan element and no positive sampling_frequency (expected one "
                        "of them to time the scans)");
       }
+      // The time base of t_s (pipeline.hpp "Time base"): the kernel's default clock is realtime, so only
+      // a device whose current_timestamp_clock reads monotonic (as written above, or kept) counts.
+      std::string ts_clock;
+      monotonic_time_ = main_.dec.has_timestamp &&
+                        read_sysfs_optional(dev_.dir + "/current_timestamp_clock", ts_clock) && ts_clock == "monotonic";
     } else {
       open_polled(root);
       if (separate_mag) {
@@ -338,6 +344,7 @@ void IioImuSource::open(const Params& params, HostContext& ctx) {
         }
       }
       rate_hz_ = poll_hz_;
+      monotonic_time_ = true;  // t_s = CLOCK_MONOTONIC at the read
     }
   } catch (const IioError& e) {
     close_streams();

@@ -96,6 +96,10 @@ class IioImuSource final : public SensorSource {
   void open(const Params& params, HostContext& ctx) override;
   SensorKind kind() const override { return SensorKind::Imu; }
   bool live() const override { return true; }
+  /// True when t_s is CLOCK_MONOTONIC: polled, or buffered with scan timestamps whose
+  /// current_timestamp_clock is (set to, or kept at) "monotonic". False for other clocks and for
+  /// timestamp-less scans (t_s = count / sampling frequency, from 0 at start()).
+  bool monotonic_time() const override { return monotonic_time_; }
   void start(SensorQueue& queue) override;
   void stop() override;
   bool finished() const noexcept override { return finished_.load(std::memory_order_acquire); }
@@ -154,6 +158,7 @@ class IioImuSource final : public SensorSource {
   double last_t_s_ = -1e300;
 
   bool opened_ = false;
+  bool monotonic_time_ = false;  // decided by open()
   bool enabled_ = false;  // buffer/enable written 1 (main side bookkeeping)
   std::thread thread_;
   std::atomic<bool> stop_{false};

@@ -112,9 +112,11 @@ void JackSource::open(const JackParams& params, Logger& log) {
 void JackSource::start(AudioRing& ring) {
   if (!client_) fail("start() before open()");
   client_->start_capture(ring);
+  capturing_.store(true, std::memory_order_release);
 }
 
 void JackSource::stop() {
+  // capturing_ stays set: the origin still describes the frames already in the ring.
   if (client_) client_->stop(SharedJackClient::Part::Capture);
 }
 

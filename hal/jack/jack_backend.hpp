@@ -10,7 +10,9 @@
 // is waited for and the stream resumes, the outage reported as lost frames (docs/hal-jack.md).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 
@@ -57,6 +59,12 @@ class JackSource final : public AudioSource {
   /// A live source ends only when its client gave up (see SharedJackClient::failed).
   bool finished() const noexcept override { return client_ && client_->failed(); }
   std::string error() const override { return client_ ? client_->error() : std::string(); }
+  /// The client's (SharedJackClient::frame_zero_monotonic_s: the ring has the client's frame numbers)
+  /// once capturing started (kept after stop(): it still describes the frames captured); NaN before start().
+  double frame_zero_monotonic_s() const noexcept override {
+    return client_ && capturing_.load(std::memory_order_acquire) ? client_->frame_zero_monotonic_s()
+                                                                 : std::numeric_limits<double>::quiet_NaN();
+  }
 
   /// [any] The shared client (nullptr before open()).
   const SharedJackClient* client() const noexcept { return client_.get(); }
@@ -64,6 +72,7 @@ class JackSource final : public AudioSource {
  private:
   JackParams params_;
   std::shared_ptr<SharedJackClient> client_;
+  std::atomic<bool> capturing_{false};
 };
 
 class JackSink final : public AudioSink {

@@ -5,6 +5,8 @@
 #include <jack/jack.h>
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
@@ -201,7 +203,25 @@ int SharedJackClient::on_process(std::uint32_t nframes, void* arg) noexcept {
   clock_gettime(CLOCK_MONOTONIC, &ts);
   const std::int64_t now_ns = static_cast<std::int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
   const std::uint32_t frame_time = jc != nullptr ? jack_last_frame_time(jc) : 0;
+  // The time base (frame_zero_monotonic_s): the cycle began at server frame time `frame_time`, i.e. at
+  // jack_frames_to_time() on jack_get_time()'s clock; `offset_us` maps that clock to CLOCK_MONOTONIC.
+  // Published before the cycle's frames reach the ring (first cycle: no frame is lost before it, so
+  // frame() is this cycle's first frame), and exactly after it (a skip found in this cycle moved it).
+  double cycle_start_s = std::numeric_limits<double>::quiet_NaN();
+  if (jc != nullptr) {
+    const double offset_us = static_cast<double>(now_ns) * 1e-3 - static_cast<double>(jack_get_time());
+    cycle_start_s = (static_cast<double>(jack_frames_to_time(jc, frame_time)) + offset_us) * 1e-6;
+    if (std::isnan(self->frame_zero_s_.load(std::memory_order_relaxed))) {
+      self->frame_zero_s_.store(
+          cycle_start_s - static_cast<double>(self->processor_.frame()) / self->processor_.sample_rate_hz(),
+          std::memory_order_release);
+    }
+  }
   self->processor_.process(self->in_bufs_.data(), n_in, self->out_bufs_.data(), n_out, nframes, frame_time, now_ns);
+  if (!std::isnan(cycle_start_s)) {
+    const double first = static_cast<double>(self->processor_.frame() - nframes);  // this cycle's first frame
+    self->frame_zero_s_.store(cycle_start_s - first / self->processor_.sample_rate_hz(), std::memory_order_release);
+  }
   self->processor_.end_cycle();
   return 0;
 }

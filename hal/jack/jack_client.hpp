@@ -23,6 +23,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -114,6 +115,13 @@ class SharedJackClient {
   /// Period size of the current connection (0 while down).
   std::uint32_t buffer_frames() const noexcept { return buffer_frames_.load(std::memory_order_relaxed); }
   const JackProcessor& processor() const noexcept { return processor_; }
+  /// CLOCK_MONOTONIC seconds of client frame 0 (NaN before the first cycle): the server's time of the
+  /// current cycle's start (jack_frames_to_time of jack_last_frame_time, on jack_get_time()'s clock,
+  /// which jack2 takes from CLOCK_MONOTONIC on Linux with the default system clock source; the offset
+  /// to CLOCK_MONOTONIC is measured every cycle anyway, so hpet/cycle-counter sources work too) minus
+  /// the client frames before it. Updated every cycle (follows the server's DLL, skipped cycles and
+  /// outages, which advance the frame counter). Capture rings share the client's frame numbers.
+  double frame_zero_monotonic_s() const noexcept { return frame_zero_s_.load(std::memory_order_acquire); }
 
  private:
   struct PartState {
@@ -154,6 +162,7 @@ class SharedJackClient {
   const ReconnectPolicy policy_;
 
   JackProcessor processor_;
+  std::atomic<double> frame_zero_s_{std::numeric_limits<double>::quiet_NaN()};
   std::atomic<jack_client_t*> jc_{nullptr};
   std::array<const float*, kMaxPorts> in_bufs_{};  // RT scratch: port buffers of one cycle
   std::array<float*, kMaxPorts> out_bufs_{};

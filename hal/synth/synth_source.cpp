@@ -266,6 +266,7 @@ void SynthSource::start(AudioRing& ring) {
   stop_.store(false, std::memory_order_release);
   finished_.store(false, std::memory_order_release);
   produced_.store(0, std::memory_order_release);
+  frame_zero_s_.store(std::numeric_limits<double>::quiet_NaN(), std::memory_order_release);
   if (gen_->config().pace == Pace::Realtime) {
     block_.assign(kBlockFrames * gen_->config().channels, 0.0f);
     thread_ = std::thread([this, &ring] { run_realtime(ring); });
@@ -316,6 +317,11 @@ void SynthSource::run_realtime(AudioRing& ring) {
     }
     if (stop_.load(std::memory_order_acquire)) return;
     gen_->render(next, n, block_.data());
+    // Frame 0 was taken at t0 (libstdc++'s steady_clock is CLOCK_MONOTONIC); published before the first
+    // write, so a consumer that sees frames sees the origin.
+    if (next == 0) {
+      frame_zero_s_.store(std::chrono::duration<double>(t0.time_since_epoch()).count(), std::memory_order_release);
+    }
     ring.write(block_.data(), n);  // reports what does not fit as lost (write_lost)
     next += n;
     produced_.store(next, std::memory_order_release);

@@ -23,6 +23,7 @@
 #pragma once
 
 #include <atomic>
+#include <limits>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -132,6 +133,9 @@ class SynthSource final : public AudioSource {
   void stop() override;
   bool finished() const noexcept override { return finished_.load(std::memory_order_acquire); }
   std::string error() const override { return {}; }
+  /// pace=realtime: the steady clock (CLOCK_MONOTONIC on Linux) at the start of the run, where frame 0
+  /// is captured; NaN for pace=max (replay-like) and before the first block is written.
+  double frame_zero_monotonic_s() const noexcept override { return frame_zero_s_.load(std::memory_order_acquire); }
 
   /// Frames produced (committed or, for pace=realtime, reported lost) so far.
   std::uint64_t frames_produced() const noexcept { return produced_.load(std::memory_order_acquire); }
@@ -146,6 +150,7 @@ class SynthSource final : public AudioSource {
   std::atomic<bool> stop_{false};
   std::atomic<bool> finished_{false};
   std::atomic<std::uint64_t> produced_{0};
+  std::atomic<double> frame_zero_s_{std::numeric_limits<double>::quiet_NaN()};
 };
 
 }  // namespace locus::hal::synth

@@ -882,7 +882,10 @@ NetworkSolution solve_network(const std::vector<Beep>& beeps, const std::vector<
     Obs o = make_obs(beeps, arrivals[l], cfg, true);
     if (o.n() < 4) continue;
     const JointResult jr = joint_solve(o, cfg, true);
-    if (!jr.fit.ok || jr.fit.x.norm() > cfg.max_range_m || std::abs(jr.fit.g / cfg.speed_of_sound_mps) > cfg.max_abs_skew) continue;
+    if (!jr.fit.ok || !jr.fit.x.allFinite() || std::abs(jr.fit.g / cfg.speed_of_sound_mps) > cfg.max_abs_skew) continue;
+    // a fit that ran away (distance not determined on its own) joins from half the range limit
+    Eigen::Vector2d x0 = jr.fit.x;
+    if (x0.norm() > 0.5 * cfg.max_range_m) x0 *= 0.5 * cfg.max_range_m / x0.norm();
     Obs ot = make_obs(beeps, arrivals[l], cfg, false);  // timing error only: positions are unknowns now
     // keep the robust pass's outlier decisions
     std::vector<int> keep;
@@ -892,8 +895,8 @@ NetworkSolution solve_network(const std::vector<Beep>& beeps, const std::vector<
     // re-reference b to this observation set (the first heard beep is the same unless it was dropped)
     double b = 0, g = 0;
     std::vector<double> w1(static_cast<std::size_t>(used.n()), 1.0);
-    varpro_cost(used, w1, jr.fit.x, &b, &g);
-    members.push_back({l, std::move(used), Eigen::Vector4d(jr.fit.x.x(), jr.fit.x.y(), b, g)});
+    varpro_cost(used, w1, x0, &b, &g);
+    members.push_back({l, std::move(used), Eigen::Vector4d(x0.x(), x0.y(), b, g)});
   }
   const std::size_t K = beeps.size(), M = members.size();
   out.listeners_in_network = static_cast<int>(M);

@@ -102,12 +102,12 @@ def main():
         print(f"{t['target']:>8} {tdir:9.1f} {edir_s} {derr_s} | {td:9.2f} {edist_s} {pct_s} | {e.get('confidence', 0):5.2f}")
     s = group["summary"]
 
-    def f(v, spec):
+    def fmtv(v, spec):
         return format(v, spec) if v is not None else "-"
     print(f"located {s.get('targets_located')}/{s.get('targets_expected')}; direction error mean "
-          f"{f(s.get('mean_direction_error_deg'), '.2f')} deg (max {f(s.get('max_direction_error_deg'), '.2f')}); "
-          f"distance error median {f(s.get('median_distance_error_pct'), '.1f')} %; position error mean "
-          f"{f(s.get('mean_error_m'), '.2f')} m")
+          f"{fmtv(s.get('mean_direction_error_deg'), '.2f')} deg (max {fmtv(s.get('max_direction_error_deg'), '.2f')}); "
+          f"distance error median {fmtv(s.get('median_distance_error_pct'), '.1f')} %; position error mean "
+          f"{fmtv(s.get('mean_error_m'), '.2f')} m")
 
     import matplotlib
     matplotlib.use("Agg")
@@ -149,20 +149,20 @@ def main():
     ax.grid(True, alpha=0.3)
     ax.set_xlim(-2.5, 2.5)
     ax.set_ylim(-0.6, 5.6)
-    s_line = (f"direction error mean {f(s.get('mean_direction_error_deg'), '.2f')} deg, "
-              f"distance error median {f(s.get('median_distance_error_pct'), '.1f')} %")
+    s_line = (f"direction error mean {fmtv(s.get('mean_direction_error_deg'), '.2f')} deg, "
+              f"distance error median {fmtv(s.get('median_distance_error_pct'), '.1f')} %")
     ax.set_title(f"AMIL: one gesture locates every listener\n{s_line}", fontsize=11)
-    ins = ax.inset_axes([0.03, 0.62, 0.3, 0.3])
+    ins = ax.inset_axes([0.03, 0.02, 0.3, 0.22])
     if truth_path:
         ins.plot([p[0] for p in truth_path], [p[1] for p in truth_path], "-", color="0.6", lw=2, label="true")
     if path:
         ins.plot([p[0] for p in path], [p[1] for p in path], "-", color="tab:red", lw=1, label="tracked (IMU)")
     if beeps:
-        ins.plot([b[0] for b in beeps], [b[1] for b in beeps], "o", color="tab:blue", ms=4, label="beeps")
+        ins.plot([b[0] for b in beeps], [b[1] for b in beeps], "o", color="tab:blue", ms=4, label="beeps (speaker)")
     ins.set_aspect("equal")
     ins.set_title("gesture (m)", fontsize=8)
     ins.tick_params(labelsize=7)
-    ins.legend(fontsize=6, loc="upper right")
+    ins.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     ax.legend(loc="lower right", fontsize=8)
     fig.tight_layout()
     fig.savefig(png, dpi=110)

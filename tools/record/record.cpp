@@ -132,6 +132,7 @@ struct Recorder::Host {
 struct Recorder::Device {
   std::string id;
   std::string dir;  // OUT/<id>
+  std::optional<GeometryConfig> geometry;
 
   // audio
   std::string audio_name;
@@ -152,8 +153,15 @@ struct Recorder::Device {
   std::atomic<std::uint64_t> frames_written{0};
   std::atomic<bool> limit_reached{false};
 
+  /// How a sensor stream's times reach the file (pipeline.hpp, "Time base"): as the source stamps
+  /// them, or moved from CLOCK_MONOTONIC onto the audio timeline (t - frame_zero_monotonic_s()).
+  enum class TimeBase : std::uint8_t { AsIs, Pending, Audio, Monotonic };
+
   struct Sensor {
     SensorKind kind = SensorKind::Imu;
+    TimeBase time_base = TimeBase::AsIs;
+    std::vector<Event> held;          // Pending: popped before the audio knew its origin
+    std::uint64_t untranslated = 0;   // written on CLOCK_MONOTONIC because the audio never gave an origin
     std::string name;
     std::unique_ptr<SpdLogger> log;
     std::unique_ptr<SensorSource> source;
@@ -257,26 +265,57 @@ struct Recorder::Device {
     return moved;
   }
 
+  /// Events held longer than this while the audio has no origin are written on CLOCK_MONOTONIC.
+  static constexpr std::size_t kMaxHeldEvents = std::size_t{1} << 20;
+
+  double audio_origin_s() const noexcept { return audio ? audio->frame_zero_monotonic_s() : kNaN; }
+
+  void write_event(Sensor& s, Event& e) {
+    if (s.time_base == TimeBase::Audio) shift_sensor_event_time(e, -audio_origin_s());
+    if (s.time_base == TimeBase::Monotonic) ++s.untranslated;
+    if (const auto* imu = std::get_if<ImuSample>(&e); imu != nullptr && s.imu) {
+      if (imu->t_s < s.last_t) ++s.out_of_order;
+      s.last_t = imu->t_s;
+      s.imu->write(*imu);
+    } else if (const auto* ble = std::get_if<BleAdvertisement>(&e); ble != nullptr && s.ble) {
+      s.ble->write(*ble);
+    } else if (const auto* sync = std::get_if<RadioSync>(&e); sync != nullptr && s.sync) {
+      s.sync->write(*sync);
+    } else {
+      throw std::runtime_error("sensor source '" + s.name + "' pushed a " + std::string(event_type_name(type_of(e))) +
+                               " event into its " + std::string(sensor_kind_name(s.kind)) + " stream");
+    }
+    ++s.rows;
+  }
+
+  /// A Pending stream whose audio now has an origin (or never will: `give_up`) writes what it held.
+  void settle_time_base(Sensor& s, bool give_up) {
+    if (s.time_base != TimeBase::Pending) return;
+    if (std::isfinite(audio_origin_s())) {
+      s.time_base = TimeBase::Audio;
+    } else if (give_up || s.held.size() >= kMaxHeldEvents) {
+      s.time_base = TimeBase::Monotonic;
+    } else {
+      return;
+    }
+    for (Event& e : s.held) write_event(s, e);
+    s.held.clear();
+    s.held.shrink_to_fit();
+  }
+
   bool drain_sensors() {
     bool moved = false;
     for (Sensor& s : sensors) {
+      settle_time_base(s, false);
       Event e;
       for (std::size_t i = 0; i < kEventsPerPass && s.queue->try_pop(e); ++i) {
         moved = true;
-        if (const auto* imu = std::get_if<ImuSample>(&e); imu != nullptr && s.imu) {
-          if (imu->t_s < s.last_t) ++s.out_of_order;
-          s.last_t = imu->t_s;
-          s.imu->write(*imu);
-        } else if (const auto* ble = std::get_if<BleAdvertisement>(&e); ble != nullptr && s.ble) {
-          s.ble->write(*ble);
-        } else if (const auto* sync = std::get_if<RadioSync>(&e); sync != nullptr && s.sync) {
-          s.sync->write(*sync);
+        if (s.time_base == TimeBase::Pending) {
+          s.held.push_back(e);
+          settle_time_base(s, false);
         } else {
-          throw std::runtime_error("sensor source '" + s.name + "' pushed a " +
-                                   std::string(event_type_name(type_of(e))) + " event into its " +
-                                   std::string(sensor_kind_name(s.kind)) + " stream");
+          write_event(s, e);
         }
-        ++s.rows;
       }
     }
     return moved;
@@ -322,6 +361,7 @@ void Recorder::run_writer(Device& d) {
       std::this_thread::sleep_for(std::chrono::milliseconds(2));
     }
     d.write_trailing_loss();
+    for (auto& s : d.sensors) d.settle_time_base(s, true);
     d.close_files();
   } catch (const std::exception& e) {
     d.set_error(e.what());
@@ -346,6 +386,7 @@ Recorder::Recorder(const Config& config, const Registry& registry, RecorderSetti
     if (dc.is_template()) continue;
     auto d = std::make_unique<Device>();
     d->id = dc.id;
+    d->geometry = dc.geometry;
     if (dc.audio) {
       const AudioConfig& ac = *dc.audio;
       d->audio_name = ac.source;
@@ -374,6 +415,12 @@ Recorder::Recorder(const Config& config, const Registry& registry, RecorderSetti
                                  " Hz but device '" + rate_device + "' at " + scene::format_double(*rate) +
                                  " Hz; a scene has one sample rate");
       }
+      if (dc.geometry && !dc.geometry->mics_m.empty() && dc.geometry->mics_m.size() != d->channels) {
+        throw std::runtime_error("device '" + dc.id + "': geometry.mics_m places " +
+                                 std::to_string(dc.geometry->mics_m.size()) + " microphones but audio source '" +
+                                 ac.source + "' delivers " + std::to_string(d->channels) +
+                                 " channels (expected one x y z triple per channel)");
+      }
       rate = d->rate_hz;
       rate_device = dc.id;
       d->format = settings_.sample_format ? *settings_.sample_format : native_sample_format(ac.source, ac.params, d->audio.get());
@@ -399,6 +446,8 @@ Recorder::Recorder(const Config& config, const Registry& registry, RecorderSetti
                                  sc->source + "': " + e.what());
       }
       s.queue = std::make_unique<SensorQueue>(sc->queue_capacity);
+      // Live sensors stamp CLOCK_MONOTONIC; next to live audio the scene wants the audio's timeline.
+      if (s.source->monotonic_time() && d->audio && d->audio->live()) s.time_base = Device::TimeBase::Pending;
       d->sensors.push_back(std::move(s));
     }
     if (!d->audio && d->sensors.empty()) {
@@ -426,9 +475,19 @@ Recorder::Recorder(const Config& config, const Registry& registry, RecorderSetti
     if (ec) throw std::runtime_error(d.dir + ": cannot create: " + ec.message());
     scene::DeviceSpec spec;
     spec.id = d.id;
+    if (d.geometry) {
+      if (d.geometry->speaker_m) spec.speaker_m = *d.geometry->speaker_m;
+      if (d.geometry->anchor_m) spec.anchor_position_m = *d.geometry->anchor_m;
+    }
     if (d.audio) {
-      // No geometry in a node config: the channels are placed at the body origin (docs/record.md).
-      spec.mics_m.assign(d.channels, scene::Vec3{0.0, 0.0, 0.0});
+      // The config's geometry.mics_m; without it, every channel at the body origin (docs/record.md).
+      if (d.geometry && !d.geometry->mics_m.empty()) {
+        spec.mics_m.assign(d.geometry->mics_m.begin(), d.geometry->mics_m.end());
+      } else {
+        spec.mics_m.assign(d.channels, scene::Vec3{0.0, 0.0, 0.0});
+        host_logger()->info("device '{}': no geometry.mics_m in the config: its {} channel(s) are written as mics at "
+                            "the body origin", d.id, d.channels);
+      }
       spec.audio = d.id + "/audio.wav";
       d.wav = std::make_unique<scene::WavWriter>(scene_.path(spec.audio), static_cast<int>(d.channels), d.rate_hz, d.format);
       d.gaps_csv = std::make_unique<scene::CsvWriter>(d.dir + "/gaps.csv", std::vector<std::string>{"frame", "frames"});
@@ -576,6 +635,9 @@ std::vector<RecordedDevice> Recorder::devices() const {
       r.sensor_source[k] = s.name;
       r.dropped_events[k] = s.queue->dropped();
       if (done) {
+        r.time_base[k] = s.time_base == Device::TimeBase::Audio       ? "audio"
+                         : s.time_base == Device::TimeBase::Monotonic ? "monotonic"
+                                                                       : "source";
         r.events[k] = s.rows;
         if (s.kind == SensorKind::Imu) r.imu_out_of_order = s.out_of_order;
       }
@@ -623,6 +685,7 @@ void Recorder::write_recording_yaml(const std::string& reason) const {
       y << YAML::Key << "source" << YAML::Value << r.sensor_source[k];
       y << YAML::Key << "events" << YAML::Value << r.events[k];
       y << YAML::Key << "dropped_events" << YAML::Value << r.dropped_events[k];
+      if (!r.time_base[k].empty()) y << YAML::Key << "time_base" << YAML::Value << r.time_base[k];
       if (k == 0) y << YAML::Key << "out_of_order_rows" << YAML::Value << r.imu_out_of_order;
       y << YAML::EndMap;
     }
@@ -759,6 +822,13 @@ int run_record(const RecordOptions& opts) {
                 sensor_kind_name(static_cast<SensorKind>(k)), d.dropped_events[k]);
       if (d.dropped_events[k] != 0) {
         log->warn("device {}: {} {} events were dropped (queue full; raise queue_capacity)", d.id, d.dropped_events[k],
+                  sensor_kind_name(static_cast<SensorKind>(k)));
+      }
+    }
+    for (std::size_t k = 0; k < 3; ++k) {
+      if (d.time_base[k] == "monotonic") {
+        log->warn("device {}: the {} times are CLOCK_MONOTONIC seconds: the live audio never reported when its frame 0 "
+                  "was captured, so they could not be put on the audio timeline", d.id,
                   sensor_kind_name(static_cast<SensorKind>(k)));
       }
     }

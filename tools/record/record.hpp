@@ -86,6 +86,10 @@ struct RecordedDevice {
   std::array<std::string, 3> sensor_source{};
   std::array<std::uint64_t, 3> events{};          ///< rows written
   std::array<std::uint64_t, 3> dropped_events{};  ///< a live source found its queue full
+  /// Where the times of each sensor stream are: "source" (as stamped: replay, or no live audio to align
+  /// to), "audio" (moved from CLOCK_MONOTONIC onto the audio timeline, t = 0 at audio frame 0),
+  /// "monotonic" (the live audio never gave an origin: CLOCK_MONOTONIC seconds).
+  std::array<std::string, 3> time_base{};
   std::uint64_t imu_out_of_order = 0;             ///< IMU rows written with t below the previous row's
   std::string error;                              ///< first source or file error ("" = none)
 };

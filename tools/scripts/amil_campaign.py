@@ -238,9 +238,9 @@ def main():
         methods = [m for m in args.plugin_method.split(',') if m] or [None]
         print(f"\n### Plugin end to end (locus replay -c {os.path.basename(args.plugin_config)} + locus eval --metric amil): "
               f"{args.difficulty}, {args.gestures} gesture(s), seeds {args.seeds}\n")
-        print("| method | seeds | located fraction | mean dir err (deg) | median dist err (%) | mean pos err (m) | "
-              "median pos err (m) | worst seed mean dir err |")
-        print("|---|---|---|---|---|---|---|---|")
+        print("| method | seeds | listeners located | mean dir err (deg) | worst seed's mean dir err | median dist err "
+              "<= 2.5 m (%) (n) | mean pos err (m) | median pos err (m) | with position |")
+        print("|---|---|---|---|---|---|---|---|---|")
         for m in methods:
             cfg = args.plugin_config
             if m:
@@ -249,20 +249,31 @@ def main():
                     if loc.get('plugin') == 'amil': loc.setdefault('params', {})['method'] = m
                 cfg = os.path.join(args.work, f"amil-{m}.yaml")
                 yaml.safe_dump(C, open(cfg, 'w'))
-            summ = []
+            summ, near, dirs, located, expected, pos = [], [], [], 0, 0, []
             for sc in scenes:
                 est = f"{sc}.{m or 'default'}.est.jsonl"
                 run([args.locus, 'replay', sc, '-c', cfg, '--speed', 'max', '-o', est])
                 r = run([args.locus, 'eval', sc, est, '--metric', 'amil', '--json'])
                 J = json.loads(r.stdout)
-                s = J['plugins'][0]['summary'] if J.get('plugins') else {}
-                summ.append(s)
+                pl = J['plugins'][0] if J.get('plugins') else {'summary': {}, 'targets': []}
+                summ.append(pl['summary'])
+                expected += pl['summary'].get('targets_expected') or 0
+                located += pl['summary'].get('targets_located') or 0
+                for t in pl.get('targets', []):
+                    if t.get('direction_error_deg') is not None: dirs.append(t['direction_error_deg'])
+                    if t.get('position_error_m') is not None: pos.append(t['position_error_m'])
+                    if (t.get('true_distance_m') or 99) <= 2.5 and t.get('distance_error_pct') is not None:
+                        near.append(t['distance_error_pct'])
             g = lambda k: [s[k] for s in summ if s.get(k) is not None]
             mean = lambda v: statistics.mean(v) if v else float('nan')
-            results['plugin'][m or 'default'] = summ
-            print(f"| {m or 'config'} | {len(summ)} | {mean(g('located_fraction')):.2f} | {mean(g('mean_direction_error_deg')):.2f} | "
-                  f"{mean(g('median_distance_error_pct')):.1f} | {mean(g('mean_error_m')):.3f} | {mean(g('median_error_m')):.3f} | "
-                  f"{max(g('mean_direction_error_deg') or [float('nan')]):.2f} |")
+            med = lambda v: statistics.median(v) if v else float('nan')
+            results['plugin'][m or 'default'] = {'per_seed': summ, 'pooled': {
+                'located_fraction': located / expected if expected else None, 'mean_direction_error_deg': mean(dirs),
+                'median_distance_error_pct_within_2_5m': med(near), 'listeners_within_2_5m_with_distance': len(near),
+                'mean_position_error_m': mean(pos), 'median_position_error_m': med(pos)}}
+            print(f"| {m or 'config'} | {len(summ)} | {located}/{expected} | {mean(dirs):.2f} | "
+                  f"{max(g('mean_direction_error_deg') or [float('nan')]):.2f} | {med(near):.1f} ({len(near)}) | "
+                  f"{mean(pos):.3f} | {med(pos):.3f} | {len(pos)} |")
     if args.json:
         json.dump(results, open(args.json, 'w'), indent=1, default=str)
 

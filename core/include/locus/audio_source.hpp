@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <string>
 
 #include "locus/audio_ring.hpp"
@@ -32,6 +33,15 @@ class AudioSource {
   virtual bool finished() const noexcept = 0;
   /// [main] Error that ended the stream early ("" if none).
   virtual std::string error() const { return {}; }
+
+  /// [any, RT-safe] CLOCK_MONOTONIC seconds at which stream frame 0 was (or would have been) captured,
+  /// so that stream frame F was captured at frame_zero_monotonic_s() + F / sample_rate_hz() (frames
+  /// reported lost count: they advance the frame counter like captured ones). NaN when unknown:
+  /// non-live sources (replay: their device-local time already has frame 0 at t = 0), or a live
+  /// source that has not produced frames yet. Valid once frames have been produced; a source may
+  /// refine it while running (clock drift, a server reconnect) by small amounts. The pipeline uses it
+  /// to put live sensor events (stamped on CLOCK_MONOTONIC) on the audio timeline (pipeline.hpp).
+  virtual double frame_zero_monotonic_s() const noexcept { return std::numeric_limits<double>::quiet_NaN(); }
 };
 
 }  // namespace locus

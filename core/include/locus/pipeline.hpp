@@ -15,6 +15,17 @@
 // interleaving is exact and nothing is dropped (it also waits for room in the event queue). A live
 // stream never makes it wait: live streams are merged as they come (best effort).
 //
+// Time base: device-local time means the same thing live and in replay: audio frame F <-> t = F / fs.
+// Replay sources already stamp that way. Live sensor sources stamp CLOCK_MONOTONIC seconds
+// (SensorSource::monotonic_time()); on a device whose audio source is live the detector thread moves
+// each such event onto the audio timeline, t_s - AudioSource::frame_zero_monotonic_s(), before it is
+// merged, handed to detectors and posted to the bus (events sensed before the first audio frame get
+// t_s < 0). An event popped before the audio source knows its origin (not started yet) is held (the
+// sensor queue is the bound) until it does; it goes out untranslated (monotonic time, counted in
+// DeviceStats::sensor_untranslated) only if the audio ends or the inputs stop without an origin, or the
+// held stream's queue is full (audio that never starts does not silence the sensors). A device without
+// audio, or with non-live audio, keeps its sensors' own times (monotonic for live sources).
+//
 // Every raw sensor event (ImuSample, BleAdvertisement, RadioSync) is also posted to the bus, in that
 // order with the detections, so localizers can subscribe to them.
 //
@@ -27,6 +38,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -97,6 +109,12 @@ class DeviceRunner {
   bool done() const noexcept { return done_; }
 
   std::uint64_t sensor_events_delivered() const noexcept { return sensor_events_; }
+  /// Sensor events moved from CLOCK_MONOTONIC onto the audio timeline ("Time base" above).
+  std::uint64_t sensor_events_translated() const noexcept { return translated_; }
+  /// Monotonic-time sensor events delivered untranslated because the live audio had no origin yet.
+  std::uint64_t sensor_events_untranslated() const noexcept { return untranslated_; }
+  /// Steps on which a sensor head was held waiting for the audio's origin.
+  std::uint64_t origin_waits() const noexcept { return origin_waits_; }
   /// Times the runner found nothing it could deliver while a non-live stream was behind (waits).
   std::uint64_t waits() const noexcept { return waits_; }
 
@@ -106,12 +124,16 @@ class DeviceRunner {
     const SensorSource* source = nullptr;
     SensorKind kind = SensorKind::Imu;
     bool live = false;
+    bool monotonic = false;  ///< t_s on CLOCK_MONOTONIC (source->monotonic_time())
     std::vector<Detector*> detectors;
     Event head;
     bool has_head = false;
+    bool untimed = false;    ///< head still on CLOCK_MONOTONIC, waiting for the audio's origin
     bool ended = false;
   };
   void deliver(Sensor& s) noexcept;
+  /// Puts an untimed head on the audio timeline; false while it must be held.
+  bool place_on_timeline(Sensor& s, bool stop_requested) noexcept;
 
   double fs_;
   EventSink& sink_;
@@ -127,6 +149,10 @@ class DeviceRunner {
   bool done_ = false;
   std::uint64_t sensor_events_ = 0;
   std::uint64_t waits_ = 0;
+  double origin_s_ = std::numeric_limits<double>::quiet_NaN();  // last finite frame_zero_monotonic_s()
+  std::uint64_t translated_ = 0;
+  std::uint64_t untranslated_ = 0;
+  std::uint64_t origin_waits_ = 0;
 };
 
 struct DeviceStats {
@@ -137,6 +163,7 @@ struct DeviceStats {
   std::uint64_t events_dropped = 0;
   std::uint64_t sensor_events = 0;   ///< sensor events delivered (all streams)
   std::uint64_t sensor_dropped = 0;  ///< sensor events live sources dropped (full queue)
+  std::uint64_t sensor_untranslated = 0;  ///< monotonic sensor events delivered without the audio's origin
   std::uint64_t playback_xruns = 0;  ///< underruns of the playback sink
   std::uint64_t late_emissions = 0;  ///< emissions cut or refused (Emitter::late_emissions)
   std::string source_error;          ///< first error of the device's sources ("imu source: ..." for sensors,

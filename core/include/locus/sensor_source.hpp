@@ -35,6 +35,9 @@ std::string_view sensor_kind_name(SensorKind kind) noexcept;
 EventType sensor_event_type(SensorKind kind) noexcept;
 /// Local time of a sensor event (ImuSample / BleAdvertisement / RadioSync t_s); NaN for other types.
 double sensor_event_time_s(const Event& event) noexcept;
+/// [RT] Adds `delta_s` to the local time of a sensor event (ImuSample / BleAdvertisement / RadioSync);
+/// false (nothing changed) for other types.
+bool shift_sensor_event_time(Event& event, double delta_s) noexcept;
 
 /// The hand-over from one sensor source (producer thread) to the device's detector thread (consumer).
 /// Fixed capacity (rounded up to a power of two), lock-free, never allocates after construction.
@@ -76,6 +79,13 @@ class SensorSource {
   /// sources that can wait for the consumer (replay at max speed). A device whose sources are all
   /// non-live is replayed losslessly and in exact time order.
   virtual bool live() const = 0;
+
+  /// [main, after open()] True when the events' t_s are CLOCK_MONOTONIC seconds (iio polled, iio
+  /// buffered with timestamp_clock monotonic, bluez); false when t_s is already device-local time
+  /// with audio frame 0 at t = 0 (scene replay) or on some other clock. The pipeline translates
+  /// monotonic times onto the audio timeline of a device whose audio source is live (pipeline.hpp,
+  /// "Time base").
+  virtual bool monotonic_time() const { return false; }
 
   /// [main] Starts producing into `queue` (the source owns its thread). Must return quickly. Events are
   /// pushed in non-decreasing local time (the order the device sensed them).

@@ -85,6 +85,7 @@ void DeviceRunner::add_sensor(SensorQueue& queue, const SensorSource& source, st
   s.source = &source;
   s.kind = source.kind();
   s.live = source.live();
+  s.monotonic = source.monotonic_time();
   s.detectors = std::move(detectors);
   all_non_live_ = all_non_live_ && !s.live;
   sensors_.push_back(std::move(s));
@@ -103,6 +104,28 @@ void DeviceRunner::deliver(Sensor& s) noexcept {
   ++sensor_events_;
 }
 
+bool DeviceRunner::place_on_timeline(Sensor& s, bool stop_requested) noexcept {
+  // The source may refine its origin while running: read it for every event (one atomic load).
+  const double reported_s = audio_source_->frame_zero_monotonic_s();
+  if (std::isfinite(reported_s)) origin_s_ = reported_s;
+  const double origin_s = origin_s_;  // the last one known (a stopped source may forget it)
+  if (std::isfinite(origin_s)) {
+    shift_sensor_event_time(s.head, -origin_s);
+    s.untimed = false;
+    ++translated_;
+    return true;
+  }
+  // No origin yet. Hold the head unless it can never come (the audio ended or the inputs stop) or the
+  // stream's queue is full (then the oldest goes out on its own clock rather than new ones being lost).
+  if (stop_requested || audio_ended_ || audio_source_->finished() || s.queue->size_approx() >= s.queue->capacity()) {
+    s.untimed = false;
+    ++untranslated_;
+    return true;
+  }
+  ++origin_waits_;
+  return false;
+}
+
 bool DeviceRunner::step(bool stop_requested) noexcept {
   if (done_) return false;
   // A lossless device waits for the dispatcher rather than dropping events.
@@ -117,6 +140,8 @@ bool DeviceRunner::step(bool stop_requested) noexcept {
   // is released after the last push).
   Sensor* best = nullptr;
   double best_t = 0.0;
+  // Monotonic sensor times go onto the audio timeline when the audio is live ("Time base").
+  const bool to_audio_time = audio_source_ != nullptr && audio_live_;
   for (Sensor& s : sensors_) {
     if (!s.has_head && !s.ended) {
       if (s.queue->try_pop(s.head)) {
@@ -130,7 +155,9 @@ bool DeviceRunner::step(bool stop_requested) noexcept {
       } else if (!s.live) {
         behind = true;
       }
+      s.untimed = s.has_head && s.monotonic && to_audio_time;
     }
+    if (s.has_head && s.untimed && !place_on_timeline(s, stop_requested)) continue;  // held: not a candidate
     if (s.has_head) {
       const double t = sensor_event_time_s(s.head);
       if (best == nullptr || t < best_t) {
@@ -541,9 +568,12 @@ void Pipeline::flush() {
   flushed_ = true;
   for (const DeviceStats& s : stats()) {
     auto log = host_logger();
-    log->info("device {}: {} frames processed, {} lost in {} overruns, {} sensor events ({} dropped), {} events "
+    log->info("device {}: {} frames processed, {} lost in {} overruns, {} sensor events ({} dropped{}), {} events "
               "dropped{}",
               s.id, s.frames_processed, s.frames_lost, s.overruns, s.sensor_events, s.sensor_dropped,
+              s.sensor_untranslated == 0 ? std::string()
+                                         : ", " + std::to_string(s.sensor_untranslated) +
+                                               " left on CLOCK_MONOTONIC: the live audio had no time origin",
               s.events_dropped, s.source_error.empty() ? "" : ", source error: " + s.source_error);
   }
   if (writer_) writer_->flush();
@@ -577,7 +607,10 @@ std::vector<DeviceStats> Pipeline::stats() const {
       s.late_emissions = dev->emitter->late_emissions();
       if (s.source_error.empty() && !dev->sink->error().empty()) s.source_error = "playback: " + dev->sink->error();
     }
-    if (dev->device_runner) s.sensor_events = dev->device_runner->sensor_events_delivered();
+    if (dev->device_runner) {
+      s.sensor_events = dev->device_runner->sensor_events_delivered();
+      s.sensor_untranslated = dev->device_runner->sensor_events_untranslated();
+    }
     for (const auto& sensor : dev->sensors) {
       s.sensor_dropped += sensor.queue->dropped();
       if (s.source_error.empty()) {

@@ -28,4 +28,20 @@ double sensor_event_time_s(const Event& event) noexcept {
   return kNaN;
 }
 
+bool shift_sensor_event_time(Event& event, double delta_s) noexcept {
+  if (auto* s = std::get_if<ImuSample>(&event)) {
+    s->t_s += delta_s;
+    return true;
+  }
+  if (auto* a = std::get_if<BleAdvertisement>(&event)) {
+    a->t_s += delta_s;
+    return true;
+  }
+  if (auto* r = std::get_if<RadioSync>(&event)) {
+    r->t_s += delta_s;
+    return true;
+  }
+  return false;
+}
+
 }  // namespace locus

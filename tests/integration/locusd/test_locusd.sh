@@ -7,6 +7,12 @@ fails=0; passes=0
 ok() { echo "ok   - $*"; passes=$((passes + 1)); }
 fail() { echo "FAIL - $*"; fails=$((fails + 1)); }
 
+# 0. Every shipped config is valid (board configs are only checked: they name hardware).
+for cfg in "$src"/config/*.yaml; do
+  "$bin/locus" check-config "$cfg" > "$tmp/check.out" 2>&1 && ok "check-config accepts $(basename "$cfg")" ||
+    { fail "check-config on $(basename "$cfg")"; cat "$tmp/check.out"; }
+done
+
 # 1. The demo config is valid and runs to the end at full speed with the expected detections:
 #    A has 2 channels, B 1, each hears 5 chirps in 5 s.
 sed 's/pace: realtime/pace: max/' "$src/config/demo.yaml" > "$tmp/fast.yaml"

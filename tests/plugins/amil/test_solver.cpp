@@ -1,7 +1,8 @@
 // AMIL solver (plugins/amil/solver.hpp): the paper's 3-beep closed form, the direction-majority
 // filter, the given-skew (calibration) drift fix, the joint position + skew least squares, its robust
 // variant, weak-geometry fallbacks, the Cramér-Rao bound, and that the reported std matches the
-// Monte-Carlo spread of the estimates (a solver that claims a wrong confidence fails here).
+// Monte-Carlo spread of the estimates (a solver that claims a wrong confidence fails here), and the
+// network solver (all listeners at once, beep positions refined).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -293,7 +294,8 @@ TEST(AmilBound, MonteCarloSpreadMatchesCramerRaoAndReportedStd) {
 }
 
 TEST(AmilConfig, MethodNamesRoundTrip) {
-  for (auto m : {amil::Method::Paper, amil::Method::PaperJointSkew, amil::Method::Joint, amil::Method::Robust})
+  for (auto m : {amil::Method::Paper, amil::Method::PaperJointSkew, amil::Method::Joint, amil::Method::Robust,
+                 amil::Method::Network})
     EXPECT_EQ(amil::parse_method(amil::to_string(m)), m);
   EXPECT_FALSE(amil::parse_method("least_squares").has_value());
   EXPECT_NEAR(amil::speed_of_sound_mps(20.0), 343.42, 1e-9);
@@ -323,4 +325,64 @@ TEST(AmilConfig, BadInputThrowsWithAReason) {
   auto nb = beeps;
   for (auto& b : nb) b.position_m = {std::nan(""), 0.0};
   EXPECT_EQ(amil::solve(nb, ok, config(amil::Method::Robust)).status, amil::Status::Failed);
+}
+
+TEST(AmilNetwork, SharedBeepPositionErrorsAreEstimatedFromAllListeners) {
+  // One IMU track for everyone: the same beep-position errors (5 mm per axis) in every listener's
+  // data. Per listener they look like timing noise; across 12 listeners in different directions they
+  // are observable, so the network solver's distances are better and it recovers the errors.
+  const auto truth_beeps = triangle(3);
+  std::mt19937 rng(21);
+  std::normal_distribution<double> N(0.0, 1.0);
+  double err_robust = 0, err_network = 0, corr_err_before = 0, corr_err_after = 0;
+  int n = 0;
+  for (int trial = 0; trial < 8; ++trial) {
+    auto beeps = truth_beeps;
+    for (std::size_t k = 1; k < beeps.size(); ++k) beeps[k].position_m += 0.005 * Eigen::Vector2d(N(rng), N(rng));
+    std::vector<amil::ListenerArrivals> arr;
+    for (const auto& x : grid()) {
+      auto a = arrivals(truth_beeps, x, 40e-6 * N(rng));  // sound from the TRUE positions
+      for (auto& t : a.arrival_s) t += 1e-6 * N(rng);
+      arr.push_back(a);
+    }
+    auto cfg = config(amil::Method::Robust);
+    cfg.position_std_m = 0.005;
+    cfg.timing_std_s = 1.5e-6;
+    const auto net = amil::solve_network(beeps, arr, cfg);
+    ASSERT_EQ(net.listeners.size(), grid().size());
+    EXPECT_GE(net.listeners_in_network, 11) << net.note;
+    int in_network = 0;
+    for (std::size_t l = 0; l < grid().size(); ++l) {
+      const auto single = amil::solve(beeps, arr[l], cfg);
+      const auto& s = net.listeners[l];
+      ASSERT_TRUE(std::isfinite(s.direction_rad)) << s.note;
+      in_network += s.note.find("network") != std::string::npos ? 1 : 0;
+      if (!single.located() || !s.located()) continue;
+      err_robust += std::abs(single.distance_m - grid()[l].norm());
+      err_network += std::abs(s.distance_m - grid()[l].norm());
+      ++n;
+    }
+    EXPECT_EQ(in_network, net.listeners_in_network);
+    for (std::size_t k = 0; k < beeps.size(); ++k) {
+      corr_err_before += (beeps[k].position_m - truth_beeps[k].position_m).squaredNorm();
+      corr_err_after += (beeps[k].position_m + net.beep_correction_m[k] - truth_beeps[k].position_m).squaredNorm();
+    }
+  }
+  ASSERT_GT(n, 60);
+  EXPECT_LT(err_network, 0.7 * err_robust) << "network " << err_network / n << " m, robust " << err_robust / n << " m";
+  EXPECT_LT(corr_err_after, 0.7 * corr_err_before) << "beep positions: before " << std::sqrt(corr_err_before)
+                                                    << ", after " << std::sqrt(corr_err_after);
+}
+
+TEST(AmilNetwork, TooFewListenersKeepTheirOwnSolutions) {
+  const auto beeps = triangle();
+  std::vector<amil::ListenerArrivals> arr{arrivals(beeps, {0.0, 1.22}, 0.0), arrivals(beeps, {1.22, 2.44}, 0.0)};
+  auto cfg = config(amil::Method::Network);
+  cfg.timing_std_s = 1e-8;
+  const auto net = amil::solve_network(beeps, arr, cfg);
+  ASSERT_EQ(net.listeners.size(), 2u);
+  EXPECT_NE(net.note.find("fewer than 3"), std::string::npos);
+  EXPECT_LT((net.listeners[1].position_m - Eigen::Vector2d(1.22, 2.44)).norm(), 1e-3);
+  // Method::Network through solve() is the robust per-listener solution
+  EXPECT_LT((amil::solve(beeps, arr[0], cfg).position_m - Eigen::Vector2d(0.0, 1.22)).norm(), 1e-3);
 }

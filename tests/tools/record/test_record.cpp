@@ -66,6 +66,7 @@ class ScriptedSource final : public AudioSource {
     total_ = static_cast<std::uint64_t>(p.get_int("total_frames"));
     channels_ = static_cast<std::uint32_t>(p.get_int("channels"));
     fail_at_ = static_cast<std::uint64_t>(p.get_int("fail_at_frame"));
+    origin_s_ = p.get_float("frame_zero_monotonic_s");
     const auto& l = p.get_floats("losses");
     if (l.size() % 2 != 0) throw std::runtime_error("losses: expected frame,count pairs");
     for (std::size_t i = 0; i < l.size(); i += 2) losses_.push_back({std::uint64_t(l[i]), std::uint64_t(l[i + 1])});
@@ -85,9 +86,13 @@ class ScriptedSource final : public AudioSource {
     std::lock_guard lock(mutex_);
     return error_;
   }
+  double frame_zero_monotonic_s() const noexcept override {
+    return origin_s_ < 0 || !started_.load() ? kNaN : origin_s_;
+  }
 
  private:
   void run(AudioRing& ring) {
+    started_.store(true);
     std::vector<float> block;
     std::uint64_t f = 0;
     std::size_t next_loss = 0;
@@ -123,6 +128,8 @@ class ScriptedSource final : public AudioSource {
   }
 
   std::uint64_t total_ = 0, fail_at_ = 0;
+  double origin_s_ = -1.0;
+  std::atomic<bool> started_{false};
   std::uint32_t channels_ = 1;
   std::vector<std::pair<std::uint64_t, std::uint64_t>> losses_;
   std::thread thread_;
@@ -138,8 +145,51 @@ void add_scripted(Registry& r) {
       {int_param("total_frames", std::int64_t{10000}, 1, 1e9, "", "frames"),
        int_param("channels", std::int64_t{1}, 1, 8, "", "channels"),
        int_param("fail_at_frame", std::int64_t{0}, 0, 1e9, "", "0 = never"),
+       float_param("frame_zero_monotonic_s", -1.0, -1.0, 1e9, "s", "< 0 = unknown"),
        float_list_param("losses", std::vector<double>{}, 0, 1e9, "", "frame,count pairs")},
       [] { return std::unique_ptr<AudioSource>(std::make_unique<ScriptedSource>()); }});
+}
+
+/// A live IMU stamping CLOCK_MONOTONIC-like times: `count` samples at t0_s + i * 0.01.
+class MonotonicImu final : public SensorSource {
+ public:
+  ~MonotonicImu() override { stop(); }
+  void open(const Params& p, HostContext&) override {
+    t0_ = p.get_float("t0_s");
+    count_ = static_cast<int>(p.get_int("count"));
+  }
+  SensorKind kind() const override { return SensorKind::Imu; }
+  bool live() const override { return true; }
+  bool monotonic_time() const override { return true; }
+  void start(SensorQueue& q) override {
+    thread_ = std::thread([this, &q] {
+      for (int i = 0; i < count_ && !stop_.load(); ++i) {
+        ImuSample s;
+        s.t_s = t0_ + i * 0.01;
+        s.accel_mps2 = {0.0f, 9.81f, float(i)};
+        while (!q.try_push(Event{s}) && !stop_.load()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+      finished_.store(true, std::memory_order_release);
+    });
+  }
+  void stop() override {
+    stop_.store(true);
+    if (thread_.joinable()) thread_.join();
+  }
+  bool finished() const noexcept override { return finished_.load(std::memory_order_acquire); }
+
+ private:
+  double t0_ = 0.0;
+  int count_ = 0;
+  std::thread thread_;
+  std::atomic<bool> stop_{false}, finished_{false};
+};
+
+void add_monotonic_imu(Registry& r) {
+  r.add_sensor_source(SensorSourceDescriptor{
+      "mono_imu", "test: IMU on CLOCK_MONOTONIC", SensorKind::Imu,
+      {float_param("t0_s", 1000.0, 0.0, 1e9, "s", "first time"), int_param("count", std::int64_t{20}, 1, 1e6, "", "n")},
+      [] { return std::unique_ptr<SensorSource>(std::make_unique<MonotonicImu>()); }});
 }
 
 Config config_from(const std::string& yaml, Registry& r) { return load_config_string(yaml, "test.yaml", r); }
@@ -227,6 +277,84 @@ devices:
   EXPECT_EQ(devs[0].frames, info.frames);
   EXPECT_EQ(devs[0].lost_frames, 0u);
   EXPECT_EQ(devs[0].audio_source, "synth");
+}
+
+TEST(Record, GeometryFromTheConfigGoesToSceneYaml) {
+  TempDir tmp;
+  Registry reg;
+  register_builtins(reg);
+  const Config cfg = config_from(R"(
+devices:
+  - id: G
+    audio: {source: synth, params: {channels: 2, duration_s: 0.1}}
+    geometry: {mics_m: [0, -0.07, 0, 0, 0.07, 0.01], speaker_m: [0.02, -0.07, 0], anchor_m: [1, 2, 1.2]}
+)", reg);
+  RecorderSettings s;
+  s.out_dir = tmp.path("geo");
+  {
+    Recorder rec(cfg, reg, s);
+    record(rec);
+  }
+  const scene::Scene sc = scene::load_scene(s.out_dir);
+  ASSERT_EQ(sc.devices.size(), 1u);
+  const scene::DeviceSpec& d = sc.devices[0];
+  ASSERT_EQ(d.mics_m.size(), 2u);
+  EXPECT_EQ(d.mics_m[0], (scene::Vec3{0, -0.07, 0}));
+  EXPECT_EQ(d.mics_m[1], (scene::Vec3{0, 0.07, 0.01}));
+  ASSERT_TRUE(d.speaker_m);
+  EXPECT_EQ(*d.speaker_m, (scene::Vec3{0.02, -0.07, 0}));
+  ASSERT_TRUE(d.anchor_position_m);
+  EXPECT_EQ(*d.anchor_position_m, (scene::Vec3{1, 2, 1.2}));
+
+  // Three mics for two channels: refused, naming the device and both counts.
+  const Config bad = config_from(R"(
+devices:
+  - id: G
+    audio: {source: synth, params: {channels: 2, duration_s: 0.1}}
+    geometry: {mics_m: [0, 0, 0, 1, 0, 0, 2, 0, 0]}
+)", reg);
+  s.out_dir = tmp.path("geo2");
+  try {
+    Recorder rec(bad, reg, s);
+    FAIL() << "expected a refusal";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("device 'G': geometry.mics_m places 3 microphones"), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("delivers 2 channels"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Record, MonotonicSensorTimesGoOnTheAudioTimeline) {
+  TempDir tmp;
+  Registry reg;
+  register_builtins(reg);
+  add_scripted(reg);
+  add_monotonic_imu(reg);
+  for (const bool origin_known : {true, false}) {
+    const Config cfg = config_from(std::string(R"(
+devices:
+  - id: M
+    audio: {source: scripted, params: {channels: 1, total_frames: 44100, frame_zero_monotonic_s: )") +
+                                       (origin_known ? "999.75" : "-1") + R"(}}
+    imu: {source: mono_imu, params: {t0_s: 1000.0, count: 20}}
+)", reg);
+    RecorderSettings s;
+    s.out_dir = tmp.path(origin_known ? "aligned" : "unaligned");
+    Recorder rec(cfg, reg, s);
+    record(rec);
+    EXPECT_EQ(rec.error(), "");
+    const scene::Scene sc = scene::load_scene(s.out_dir);
+    scene::ImuCsvReader r(sc.path(sc.devices[0].imu), DeviceId("M"));
+    ImuSample x;
+    int n = 0;
+    while (r.next(x)) {
+      const double want = origin_known ? 0.25 + n * 0.01 : 1000.0 + n * 0.01;
+      EXPECT_NEAR(x.t_s, want, 1e-9) << "row " << n;
+      ++n;
+    }
+    EXPECT_EQ(n, 20);
+    EXPECT_EQ(rec.devices()[0].time_base[0], origin_known ? "audio" : "monotonic");
+  }
 }
 
 TEST(Record, Int16IsQuantisedExactlyAsTheWavWriterDocuments) {
