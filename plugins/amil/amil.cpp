@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
@@ -337,6 +338,10 @@ class AmilLocalizer final : public Localizer {
     for (const auto& b : beeps) times.push_back(b.player_time_s);
     char frame[32];
     std::snprintf(frame, sizeof frame, "player_start@%.6f", s.t_start_s);
+    // Pair every listener's arrivals with the beeps, then solve them (one by one, or all at once for
+    // the network method: the listeners share the beep positions).
+    std::vector<std::string> ids;
+    std::vector<amil::ListenerArrivals> arrs;
     for (const auto& [id, l] : listeners_) {
       if (done_set.count(id) || l.arrivals_s.empty()) continue;
       int matched = 0;
@@ -347,13 +352,26 @@ class AmilLocalizer final : public Localizer {
                    " beeps paired with its arrivals (3 needed)");
         continue;
       }
-      amil::Solution sol;
-      try {
-        sol = amil::solve(beeps, arr, solver_);
-      } catch (const std::exception& e) {
-        log_->error(tag + ": listener " + id + ": solver: " + e.what());
-        continue;
+      ids.push_back(id);
+      arrs.push_back(std::move(arr));
+    }
+    std::vector<amil::Solution> sols(ids.size());
+    try {
+      if (solver_.method == amil::Method::Network && !ids.empty()) {
+        amil::NetworkSolution ns = amil::solve_network(beeps, arrs, solver_);
+        if (ns.listeners.size() == ids.size()) sols = std::move(ns.listeners);
+        log_->info(tag + ": network of " + std::to_string(ns.listeners_in_network) + " listeners" +
+                   (ns.note.empty() ? std::string() : " (" + ns.note + ")"));
+      } else {
+        for (std::size_t i = 0; i < ids.size(); ++i) sols[i] = amil::solve(beeps, arrs[i], solver_);
       }
+    } catch (const std::exception& e) {
+      log_->error(tag + ": solver: " + e.what());
+      return;
+    }
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+      const std::string& id = ids[i];
+      const amil::Solution& sol = sols[i];
       done_set.insert(id);
       if (sol.status == amil::Status::Failed || !std::isfinite(sol.direction_rad)) {
         log_->warn(tag + ": listener " + id + ": not located (" + sol.note + ")");
@@ -446,8 +464,8 @@ const ParamSchema& amil_schema() {
       string_param("detector", "", "Only detections of this detector instance (or <detector>_<device>); \"\" = any."),
       int_param("channel", 0, 0, 31, "", "Microphone (audio channel) whose detections are the beep arrivals."),
       int_param("template_index", -1, -1, 65535, "", "Only detections of this template index (-1 = any)."),
-      enum_param("method", "robust", {"paper", "paper_joint_skew", "joint", "robust"},
-                 "Positioning method (solver.hpp): the paper's subsets + 10-degree filter, or joint position+skew least squares."),
+      enum_param("method", "robust", {"paper", "paper_joint_skew", "joint", "robust", "network"},
+                 "Positioning method (solver.hpp): the paper's subsets + 10-degree filter, joint position+skew least squares, or all listeners at once."),
       float_param("speed_of_sound_mps", 343.2, 300.0, 400.0, "m/s", "Speed of sound."),
       float_param("timing_std_s", 1.0e-6, 1e-9, 1e-2, "s", "Arrival timing error (1 sigma) assumed by the solver."),
       float_param("position_std_m", 0.01, 1e-5, 1.0, "m", "Beep position error per axis (1 sigma) assumed by the solver."),

@@ -898,116 +898,156 @@ NetworkSolution solve_network(const std::vector<Beep>& beeps, const std::vector<
     varpro_cost(used, w1, x0, &b, &g);
     members.push_back({l, std::move(used), Eigen::Vector4d(x0.x(), x0.y(), b, g)});
   }
-  const std::size_t K = beeps.size(), M = members.size();
+  const std::size_t K = beeps.size();
+  std::size_t M = members.size();
   out.listeners_in_network = static_cast<int>(M);
   if (M < 3) {
     out.note = "fewer than 3 listeners with a joint fit: per-listener solutions";
     return out;
   }
-  // 2. Gauss-Newton over all beep corrections δ_k (prior N(0, σ_p²) per axis) and every member's
-  //    (x, y, b, g); Huber IRLS on the timing residuals.
-  const std::size_t P = 2 * K + 4 * M;
-  Eigen::VectorXd theta = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(P));
-  for (std::size_t m = 0; m < M; ++m) theta.segment<4>(static_cast<Eigen::Index>(2 * K + 4 * m)) = members[m].q;
+  // A listener whose arrivals disagree with everyone's beep corrections (an obstructed listener whose
+  // first path is a reflection) would corrupt the shared corrections: after a pass, listeners whose
+  // RMS normalised residual is above max(5, 3 × the median) are left out (they keep their own
+  // solution) and the network is solved again without them.
+  Eigen::VectorXd theta;
+  Eigen::MatrixXd N;
+  Eigen::VectorXd grad;
+  std::vector<std::vector<double>> w;
+  double cost = 0;
+  int it = 0;
+  std::size_t P = 0;
+  const double c = cfg.speed_of_sound_mps;
   std::vector<double> prior_sd(K);
   for (std::size_t k = 0; k < K; ++k)
     prior_sd[k] = std::max(1e-5, std::isfinite(beeps[k].position_std_m) ? beeps[k].position_std_m : cfg.position_std_m);
-  std::vector<std::vector<double>> w(M);
-  for (std::size_t m = 0; m < M; ++m) w[m].assign(static_cast<std::size_t>(members[m].o.n()), 1.0);
-  const double c = cfg.speed_of_sound_mps;
-  Eigen::MatrixXd N;
-  Eigen::VectorXd grad;
-  auto build = [&](const Eigen::VectorXd& th, bool with_matrix) {
-    if (with_matrix) {
-      N.setZero(static_cast<Eigen::Index>(P), static_cast<Eigen::Index>(P));
-      grad.setZero(static_cast<Eigen::Index>(P));
-    }
-    double cost = 0;
-    for (std::size_t k = 0; k < K; ++k)
-      for (int a = 0; a < 2; ++a) {
-        const auto i = static_cast<Eigen::Index>(2 * k + static_cast<std::size_t>(a));
-        const double W = 1.0 / (prior_sd[k] * prior_sd[k]);
-        cost += W * th[i] * th[i];
-        if (with_matrix) {
-          N(i, i) += W;
-          grad[i] += W * th[i];
+  for (int pass = 0; pass < 3; ++pass) {
+    M = members.size();
+    P = 2 * K + 4 * M;
+    theta = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(P));
+    for (std::size_t m = 0; m < M; ++m) theta.segment<4>(static_cast<Eigen::Index>(2 * K + 4 * m)) = members[m].q;
+    w.assign(M, {});
+    for (std::size_t m = 0; m < M; ++m) w[m].assign(static_cast<std::size_t>(members[m].o.n()), 1.0);
+    it = 0;
+    // 2. Gauss-Newton over all beep corrections δ_k (prior N(0, σ_p²) per axis) and every member's
+    //    (x, y, b, g); Huber IRLS on the timing residuals.
+    auto build = [&](const Eigen::VectorXd& th, bool with_matrix) {
+      if (with_matrix) {
+        N.setZero(static_cast<Eigen::Index>(P), static_cast<Eigen::Index>(P));
+        grad.setZero(static_cast<Eigen::Index>(P));
+      }
+      double cost = 0;
+      for (std::size_t k = 0; k < K; ++k)
+        for (int a = 0; a < 2; ++a) {
+          const auto i = static_cast<Eigen::Index>(2 * k + static_cast<std::size_t>(a));
+          const double W = 1.0 / (prior_sd[k] * prior_sd[k]);
+          cost += W * th[i] * th[i];
+          if (with_matrix) {
+            N(i, i) += W;
+            grad[i] += W * th[i];
+          }
+        }
+      for (std::size_t m = 0; m < M; ++m) {
+        const Obs& o = members[m].o;
+        const auto base = static_cast<Eigen::Index>(2 * K + 4 * m);
+        const Eigen::Vector2d x = th.segment<2>(base);
+        const double b = th[base + 2], g = th[base + 3];
+        for (int k = 0; k < o.n(); ++k) {
+          const auto ku = static_cast<std::size_t>(k);
+          const auto bk = static_cast<Eigen::Index>(2 * static_cast<std::size_t>(o.index[ku]));
+          const Eigen::Vector2d pk = o.p[ku] + th.segment<2>(bk);
+          const Eigen::Vector2d diff = x - pk;
+          const double d = std::max(diff.norm(), 1e-9);
+          const double r = o.cy[ku] - b - g * (o.de[ku] + d / c) - d;
+          const double W = w[m][ku] / (o.sigma[ku] * o.sigma[ku]);
+          cost += W * r * r;
+          if (!with_matrix) continue;
+          const double f = 1.0 + g / c;
+          const Eigen::Vector2d jx = -f * diff / d;  // ∂r/∂x; ∂r/∂δ_k = −∂r/∂x
+          const Eigen::Index idx[6] = {base, base + 1, base + 2, base + 3, bk, bk + 1};
+          const double jv[6] = {jx.x(), jx.y(), -1.0, -(o.de[ku] + d / c), -jx.x(), -jx.y()};
+          for (int i = 0; i < 6; ++i) {
+            grad[idx[i]] += W * r * jv[i];
+            for (int j = 0; j < 6; ++j) N(idx[i], idx[j]) += W * jv[i] * jv[j];
+          }
         }
       }
+      return cost;
+    };
+    cost = build(theta, true);
+    double lambda = 1e-4;
+    for (int outer = 0; outer < 4; ++outer) {
+      for (int inner = 0; inner < 20; ++inner, ++it) {
+        bool improved = false;
+        for (int tries = 0; tries < 8 && !improved; ++tries) {
+          Eigen::MatrixXd A = N;
+          for (Eigen::Index i = 0; i < A.rows(); ++i) A(i, i) += lambda * std::max(N(i, i), 1e-12);
+          const Eigen::VectorXd step = A.ldlt().solve(-grad);
+          if (!step.allFinite()) {
+            lambda *= 10;
+            continue;
+          }
+          const Eigen::VectorXd tn = theta + step;
+          const double cn = build(tn, false);
+          if (cn <= cost) {
+            const double drop = cost - cn;
+            theta = tn;
+            cost = build(theta, true);
+            lambda = std::max(lambda / 10, 1e-10);
+            improved = true;
+            if (drop < 1e-9 * std::max(cost, 1.0)) inner = 1000;
+          } else {
+            lambda *= 10;
+          }
+        }
+        if (!improved) break;
+      }
+      // Huber weights from the current residuals
+      bool changed = false;
+      for (std::size_t m = 0; m < M; ++m) {
+        const Obs& o = members[m].o;
+        const auto base = static_cast<Eigen::Index>(2 * K + 4 * m);
+        for (int k = 0; k < o.n(); ++k) {
+          const auto ku = static_cast<std::size_t>(k);
+          const auto bk = static_cast<Eigen::Index>(2 * static_cast<std::size_t>(o.index[ku]));
+          const double d = (theta.segment<2>(base) - o.p[ku] - theta.segment<2>(bk)).norm();
+          const double r = o.cy[ku] - theta[base + 2] - theta[base + 3] * (o.de[ku] + d / c) - d;
+          const double z = std::abs(r) / o.sigma[ku];
+          const double wn = z <= cfg.huber_k ? 1.0 : cfg.huber_k / z;
+          if (std::abs(wn - w[m][ku]) > 1e-3) changed = true;
+          w[m][ku] = wn;
+        }
+      }
+      if (!changed) break;
+      cost = build(theta, true);
+    }
+    // gate: leave out listeners that disagree with the network
+    std::vector<double> rms(M);
     for (std::size_t m = 0; m < M; ++m) {
       const Obs& o = members[m].o;
       const auto base = static_cast<Eigen::Index>(2 * K + 4 * m);
-      const Eigen::Vector2d x = th.segment<2>(base);
-      const double b = th[base + 2], g = th[base + 3];
-      for (int k = 0; k < o.n(); ++k) {
-        const auto ku = static_cast<std::size_t>(k);
-        const auto bk = static_cast<Eigen::Index>(2 * static_cast<std::size_t>(o.index[ku]));
-        const Eigen::Vector2d pk = o.p[ku] + th.segment<2>(bk);
-        const Eigen::Vector2d diff = x - pk;
-        const double d = std::max(diff.norm(), 1e-9);
-        const double r = o.cy[ku] - b - g * (o.de[ku] + d / c) - d;
-        const double W = w[m][ku] / (o.sigma[ku] * o.sigma[ku]);
-        cost += W * r * r;
-        if (!with_matrix) continue;
-        const double f = 1.0 + g / c;
-        const Eigen::Vector2d jx = -f * diff / d;  // ∂r/∂x; ∂r/∂δ_k = −∂r/∂x
-        const Eigen::Index idx[6] = {base, base + 1, base + 2, base + 3, bk, bk + 1};
-        const double jv[6] = {jx.x(), jx.y(), -1.0, -(o.de[ku] + d / c), -jx.x(), -jx.y()};
-        for (int i = 0; i < 6; ++i) {
-          grad[idx[i]] += W * r * jv[i];
-          for (int j = 0; j < 6; ++j) N(idx[i], idx[j]) += W * jv[i] * jv[j];
-        }
-      }
-    }
-    return cost;
-  };
-  double cost = build(theta, true);
-  double lambda = 1e-4;
-  int it = 0;
-  for (int outer = 0; outer < 4; ++outer) {
-    for (int inner = 0; inner < 20; ++inner, ++it) {
-      bool improved = false;
-      for (int tries = 0; tries < 8 && !improved; ++tries) {
-        Eigen::MatrixXd A = N;
-        for (Eigen::Index i = 0; i < A.rows(); ++i) A(i, i) += lambda * std::max(N(i, i), 1e-12);
-        const Eigen::VectorXd step = A.ldlt().solve(-grad);
-        if (!step.allFinite()) {
-          lambda *= 10;
-          continue;
-        }
-        const Eigen::VectorXd tn = theta + step;
-        const double cn = build(tn, false);
-        if (cn <= cost) {
-          const double drop = cost - cn;
-          theta = tn;
-          cost = build(theta, true);
-          lambda = std::max(lambda / 10, 1e-10);
-          improved = true;
-          if (drop < 1e-9 * std::max(cost, 1.0)) inner = 1000;
-        } else {
-          lambda *= 10;
-        }
-      }
-      if (!improved) break;
-    }
-    // Huber weights from the current residuals
-    bool changed = false;
-    for (std::size_t m = 0; m < M; ++m) {
-      const Obs& o = members[m].o;
-      const auto base = static_cast<Eigen::Index>(2 * K + 4 * m);
+      double ss = 0;
       for (int k = 0; k < o.n(); ++k) {
         const auto ku = static_cast<std::size_t>(k);
         const auto bk = static_cast<Eigen::Index>(2 * static_cast<std::size_t>(o.index[ku]));
         const double d = (theta.segment<2>(base) - o.p[ku] - theta.segment<2>(bk)).norm();
         const double r = o.cy[ku] - theta[base + 2] - theta[base + 3] * (o.de[ku] + d / c) - d;
-        const double z = std::abs(r) / o.sigma[ku];
-        const double wn = z <= cfg.huber_k ? 1.0 : cfg.huber_k / z;
-        if (std::abs(wn - w[m][ku]) > 1e-3) changed = true;
-        w[m][ku] = wn;
+        ss += (r / o.sigma[ku]) * (r / o.sigma[ku]);
       }
+      rms[m] = std::sqrt(ss / std::max(1, o.n()));
     }
-    if (!changed) break;
-    cost = build(theta, true);
+    std::vector<double> sorted = rms;
+    std::sort(sorted.begin(), sorted.end());
+    const double limit = std::max(5.0, 3.0 * sorted[sorted.size() / 2]);
+    std::vector<Member> kept;
+    std::vector<int> dropped;
+    for (std::size_t m = 0; m < M; ++m)
+      if (rms[m] <= limit) kept.push_back(members[m]);
+      else dropped.push_back(static_cast<int>(members[m].listener));
+    if (kept.size() == M || kept.size() < 3 || pass == 2) break;  // the last pass is always solved
+    out.excluded.insert(out.excluded.end(), dropped.begin(), dropped.end());
+    members = std::move(kept);
   }
+  out.listeners_in_network = static_cast<int>(M);
   out.iterations = it;
   // 3. covariance (a-priori sigmas, inflated by the fit when it is worse than they say)
   int nres = 0;

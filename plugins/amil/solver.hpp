@@ -138,11 +138,14 @@ Solution solve(const std::vector<Beep>& beeps, const ListenerArrivals& arrivals,
 /// arrivals (Gauss-Newton, Huber IRLS); each listener's residual sigma is then the timing error alone.
 /// Starts from the per-listener Robust solutions; listeners without one (fewer than 4 beeps heard, no
 /// convergence) keep their per-listener solution, and with fewer than 3 usable listeners every
-/// listener gets its per-listener solution. Same errors as solve().
+/// listener gets its per-listener solution. Listeners whose residuals disagree with the network (an
+/// obstructed listener: its first path is a reflection) are left out and the network re-solved.
+/// Same errors as solve().
 struct NetworkSolution {
   std::vector<Solution> listeners;                ///< one per ListenerArrivals, same order
   std::vector<Eigen::Vector2d> beep_correction_m; ///< estimated error of each Beep::position_m (add to correct)
   int listeners_in_network = 0;
+  std::vector<int> excluded;                      ///< listeners left out as inconsistent (RMS residual > max(5σ, 3× median)); they keep their own solution
   int iterations = 0;
   std::string note;
 };

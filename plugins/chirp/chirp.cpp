@@ -18,9 +18,35 @@
 #include "locus/dsp/prescreen.hpp"
 #include "locus/dsp/signals.hpp"
 
+#include <nlohmann/json.hpp>
+
 namespace locus {
 
 namespace {
+
+/// The distinct lfm signals of DeviceGeometry::scene_emits_json, in scene order. Malformed entries are
+/// skipped: the host built the text from a validated scene.
+std::vector<dsp::SignalSpec> scene_lfms(const char* scene_emits_json) {
+  std::vector<dsp::SignalSpec> out;
+  const nlohmann::json all = nlohmann::json::parse(scene_emits_json, nullptr, false);
+  if (!all.is_array()) return out;
+  for (const auto& entry : all) {
+    if (!entry.is_object() || !entry.contains("signal")) continue;
+    const auto& sig = entry["signal"];
+    if (!sig.is_object() || sig.value("type", std::string()) != "lfm") continue;
+    dsp::SignalSpec s;
+    s.type = "lfm";
+    s.f0_hz = sig.value("f0", 0.0);
+    s.f1_hz = sig.value("f1", 0.0);
+    s.duration_s = sig.value("duration", 0.0);
+    s.fade_s = sig.value("fade", 0.0);
+    const bool seen = std::any_of(out.begin(), out.end(), [&](const dsp::SignalSpec& o) {
+      return o.f0_hz == s.f0_hz && o.f1_hz == s.f1_hz && o.duration_s == s.duration_s && o.fade_s == s.fade_s;
+    });
+    if (!seen) out.push_back(s);
+  }
+  return out;
+}
 
 enum class Refine : std::uint8_t { Phase, Gaussian, Parabolic };
 
@@ -39,7 +65,10 @@ class ChirpDetector final : public Detector {
     // Templates: the `templates` quadruples when given, else the single f0/f1/duration/fade template.
     std::vector<dsp::SignalSpec> specs;
     const std::vector<double>& list = params.get_floats("templates");
-    if (!list.empty()) {
+    if (params.get_bool("from_scene") && ctx.geometry != nullptr) specs = scene_lfms(ctx.geometry->scene_emits_json);
+    if (!specs.empty()) {
+      ctx.log.info("chirp: " + std::to_string(specs.size()) + " template(s) from the scene's lfm signals");
+    } else if (!list.empty()) {
       if (list.size() % 4 != 0)
         throw std::runtime_error("chirp: templates must hold f0_hz, f1_hz, duration_s, fade_s quadruples; got " +
                                  std::to_string(list.size()) + " values");
@@ -537,6 +566,10 @@ const ParamSchema& chirp_schema() {
         float_param("f1_hz", 8000.0, 1.0, 96000.0, "Hz", "End frequency of the LFM template (TUM: 8 kHz; AMIL: 22 kHz)."),
         float_param("duration_s", 0.040, 1e-4, 2.0, "s", "Duration of the LFM template (TUM: 40 ms; AMIL: 50 ms)."),
         float_param("fade_s", 0.005, 0.0, 1.0, "s", "Raised-cosine fade in and out of the template (as the emitter's `fade`)."),
+        bool_param("from_scene", false,
+                   "Take the templates from the scene: every distinct lfm signal a device or emitter of the scene "
+                   "emits, in scene order (template_index = position). When the host knows no scene signals (a "
+                   "live node) or the scene has no lfm, templates / f0_hz..fade_s apply."),
     };
     ParamSpec templates;
     templates.key = "templates";

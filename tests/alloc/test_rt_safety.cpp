@@ -7,8 +7,10 @@
 #include <dlfcn.h>
 #include <pthread.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <cstdlib>
 #include <new>
 #include <vector>
@@ -268,6 +270,91 @@ TEST(RtSafety, SensorDeliveryDoesNotAllocateOrLock) {
   EXPECT_EQ(locks, 0) << "sensor delivery locked a mutex (detectors: " << who << ")";
   EXPECT_GE(runner.sensor_events_delivered() - delivered0, 4000u + 1000u + 250u - 2u);
   EXPECT_GE(block_runner.frames_processed(), 4000u * kBlock);
+}
+
+// The time base on the same path: a live audio source with a frame-0 origin and live monotonic-time
+// sensors, whose events the runner holds until the origin is known, then moves onto the audio timeline.
+namespace {
+class RtLiveAudioSource final : public AudioSource {
+ public:
+  void open(const Params&, HostContext&) override {}
+  std::uint32_t channels() const override { return 1; }
+  double sample_rate_hz() const override { return 44100.0; }
+  bool live() const override { return true; }
+  void start(AudioRing&) override {}
+  void stop() override {}
+  bool finished() const noexcept override { return false; }
+  double frame_zero_monotonic_s() const noexcept override { return origin_s.load(std::memory_order_acquire); }
+  std::atomic<double> origin_s{std::numeric_limits<double>::quiet_NaN()};
+};
+class RtMonotonicSensor final : public SensorSource {
+ public:
+  explicit RtMonotonicSensor(SensorKind kind) : kind_(kind) {}
+  void open(const Params&, HostContext&) override {}
+  SensorKind kind() const override { return kind_; }
+  bool live() const override { return true; }
+  bool monotonic_time() const override { return true; }
+  void start(SensorQueue&) override {}
+  void stop() override {}
+  bool finished() const noexcept override { return false; }
+
+ private:
+  SensorKind kind_;
+};
+}  // namespace
+
+TEST(RtSafety, LiveSensorTimeBaseDoesNotAllocateOrLock) {
+  constexpr std::uint32_t kBlock = 256;
+  constexpr double kFs = 44100.0;
+  constexpr double kOrigin = 81234.5;  // CLOCK_MONOTONIC of audio frame 0
+  AudioRing ring(1, 1 << 16);
+  RtEventQueue queue("A", 1 << 12);
+  AudioBlockRunner block_runner(ring, kBlock, {}, queue);
+  RtLiveAudioSource audio_source;
+  RtMonotonicSensor imu_source(SensorKind::Imu), ble_source(SensorKind::Ble);
+  SensorQueue imu_q(1024), ble_q(256);
+  DeviceRunner runner(kFs, queue, &queue);
+  runner.set_audio(block_runner, ring, audio_source, kBlock);
+  runner.add_sensor(imu_q, imu_source, {});
+  runner.add_sensor(ble_q, ble_source, {});
+  std::vector<float> block(kBlock, 0.1f);
+  std::uint64_t frame = 0;
+  Event out;
+  double min_t = 1e300, max_t = -1e300;
+  auto iterate = [&] {
+    ring.write(block.data(), kBlock);
+    frame += kBlock;
+    const double t = kOrigin + static_cast<double>(frame - kBlock + 100) / kFs;
+    ImuSample imu;
+    imu.t_s = t;
+    imu_q.try_push(imu);
+    BleAdvertisement a;
+    a.t_s = t + 0.001;
+    ble_q.try_push(a);
+    while (runner.step(false)) {
+    }
+    while (queue.pop(out)) {
+      const double ts = sensor_event_time_s(out);
+      if (!std::isnan(ts)) {
+        min_t = std::min(min_t, ts);
+        max_t = std::max(max_t, ts);
+      }
+    }
+  };
+  RtSection rt;
+  for (int i = 0; i < 5; ++i) iterate();  // no origin yet: sensor events are held
+  const std::uint64_t held_delivered = runner.sensor_events_delivered();
+  audio_source.origin_s.store(kOrigin, std::memory_order_release);
+  for (int i = 0; i < 4000; ++i) iterate();
+  EXPECT_EQ(rt.allocs(), 0) << "time-base translation allocated";
+  EXPECT_EQ(rt.frees(), 0) << "time-base translation freed";
+  EXPECT_EQ(rt.locks(), 0) << "time-base translation locked a mutex";
+  EXPECT_EQ(held_delivered, 0u);
+  EXPECT_GT(runner.origin_waits(), 0u);
+  EXPECT_GE(runner.sensor_events_translated(), 2u * 4000u);
+  EXPECT_EQ(runner.sensor_events_untranslated(), 0u);
+  EXPECT_GE(min_t, 0.0);  // on the audio timeline, not CLOCK_MONOTONIC
+  EXPECT_LT(max_t, 4010.0 * kBlock / kFs);
 }
 
 }  // namespace

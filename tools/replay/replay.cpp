@@ -198,6 +198,7 @@ int run_replay(const ReplayOptions& opts) {
   std::vector<std::unique_ptr<Pipeline>> nodes;
   try {
     writer = std::make_unique<JsonLinesWriter>(opts.output ? *opts.output : config.output.path);
+    const std::string scene_emits = scene::scene_emits_to_json(sc);
     for (const scene::DeviceSpec& spec : sc.devices) {
       if (!has_stream(spec)) continue;
       std::vector<std::string> notes;
@@ -207,7 +208,9 @@ int run_replay(const ReplayOptions& opts) {
       po.link = &link;
       po.write_output = false;
       po.localizer_device = spec.id;
-      po.geometry.emplace(spec.id, geometry_of(spec));
+      GeometrySpec g = geometry_of(spec);
+      g.scene_emits_json = scene_emits;
+      po.geometry.emplace(spec.id, std::move(g));
       auto p = std::make_unique<Pipeline>(node, registry, std::move(po));
       for (EventType t : events) {
         JsonLinesWriter* w = writer.get();

@@ -49,7 +49,7 @@ class Publisher {
 /// speaker, emits, anchor of that device, docs/scene-format.md); a node run from a config alone has no
 /// geometry yet (HostContext::geometry == nullptr). Positions are metres; mics and speaker in the
 /// device body frame (Android convention), the anchor in the world frame. The object and the
-/// emits_json text stay valid and unchanged for the plugin instance's lifetime.
+/// emits_json / scene_emits_json texts stay valid and unchanged for the plugin instance's lifetime.
 struct DeviceGeometry {
   static constexpr std::uint32_t kMaxMics = 32;
   std::uint32_t mic_count = 0;                           ///< valid rows of mics_m = audio channels
@@ -61,6 +61,10 @@ struct DeviceGeometry {
   /// The device's `emits` list as a JSON array with the field names of scene-format.md ("[]" when it
   /// emits nothing), e.g. [{"type":"lfm","f0":2000,"f1":8000,"duration":0.04,"fade":0.005}].
   const char* emits_json = "[]";
+  /// Every signal any device or emitter of the scene emits, as a JSON array of {"id": <emitting device
+  /// or emitter id>, "signal": <signal object as in emits_json>} ("[]" when the host knows no scene).
+  /// Lets a listener's detector take its template from the scene instead of its config.
+  const char* scene_emits_json = "[]";
 };
 
 /// Everything a plugin instance gets from its host at configure() time. References stay valid until

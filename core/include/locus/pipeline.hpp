@@ -175,6 +175,7 @@ struct DeviceStats {
 struct GeometrySpec {
   DeviceGeometry geometry;
   std::string emits_json = "[]";
+  std::string scene_emits_json = "[]";  ///< DeviceGeometry::scene_emits_json
 };
 
 /// How a pipeline is embedded (defaults: a stand-alone node, as locusd runs it).

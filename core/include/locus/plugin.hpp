@@ -24,7 +24,7 @@
 #include "locus/params.hpp"
 
 /// Bump on any change of layout or virtual table in the public headers.
-#define LOCUS_PLUGIN_ABI_VERSION 3u  // 2: HostContext::geometry (DeviceGeometry); 3: HostContext::emitter
+#define LOCUS_PLUGIN_ABI_VERSION 3u  // 2: HostContext::geometry (DeviceGeometry); 3: HostContext::emitter, DeviceGeometry::scene_emits_json
 #define LOCUS_PLUGIN_ENUM_SYMBOL "locus_plugin_enum"
 
 extern "C" {

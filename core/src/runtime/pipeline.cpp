@@ -288,7 +288,10 @@ Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions opt
     if (g.anchor_m) spec.geometry.anchor_m = *g.anchor_m;
     options_.geometry.emplace(dc.id, std::move(spec));
   }
-  for (auto& [id, spec] : options_.geometry) spec.geometry.emits_json = spec.emits_json.c_str();
+  for (auto& [id, spec] : options_.geometry) {
+    spec.geometry.emits_json = spec.emits_json.c_str();
+    spec.geometry.scene_emits_json = spec.scene_emits_json.c_str();
+  }
   const auto geometry_of = [this](const std::string& id) -> const DeviceGeometry* {
     const auto it = options_.geometry.find(id);
     return it == options_.geometry.end() ? nullptr : &it->second.geometry;
@@ -478,7 +481,16 @@ Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions opt
   }
 }
 
-Pipeline::~Pipeline() { stop(); }
+Pipeline::~Pipeline() {
+  stop();
+  // Members die in reverse order: output_logs_/link_log_ (declared after outputs_/own_link_) would go before
+  // the output and link threads that log through them, and dispatched_link_ before the link thread that
+  // calls its handlers. Stop those threads first, after the localizers (which may unsubscribe).
+  localizers_.clear();
+  outputs_.clear();
+  own_link_.reset();
+  own_inprocess_ = nullptr;
+}
 
 void Pipeline::subscribe(EventType type, EventBus::Handler handler) { bus_.subscribe(type, std::move(handler)); }
 

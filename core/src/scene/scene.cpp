@@ -319,6 +319,17 @@ std::string signals_to_json(const std::vector<dsp::SignalSpec>& signals) {
   return out.dump();
 }
 
+std::string scene_emits_to_json(const Scene& scene) {
+  nlohmann::ordered_json out = nlohmann::ordered_json::array();
+  auto add = [&](const std::string& id, const std::vector<dsp::SignalSpec>& emits) {
+    const nlohmann::ordered_json signals = nlohmann::ordered_json::parse(signals_to_json(emits));
+    for (const auto& sig : signals) out.push_back(nlohmann::ordered_json{{"id", id}, {"signal", sig}});
+  };
+  for (const DeviceSpec& d : scene.devices) add(d.id, d.emits);
+  for (const EmitterSpec& e : scene.emitters) add(e.id, e.emits);
+  return out.dump();
+}
+
 bool is_known_signal_type(const std::string& type) noexcept {
   for (const char* k : kKnownTypes)
     if (type == k) return true;

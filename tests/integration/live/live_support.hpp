@@ -217,11 +217,13 @@ class Jackd {
 };
 
 /// A JACK client `name` with in_1 and out_1 that copies its input to its output every cycle (the
-/// acoustic path of a device hearing its own speaker), counting xruns and the first cycle that carried
-/// sound (its server frame time + offset).
+/// acoustic path of a device hearing its own speaker) plus white noise of `noise_amplitude` (a room is
+/// never digitally silent; detectors are tuned for a noise floor), counting xruns, cycles and the
+/// non-silent input samples that went through.
 class JackWire {
  public:
-  JackWire(const std::string& server, const std::string& name) {
+  JackWire(const std::string& server, const std::string& name, float noise_amplitude = 1e-3f)
+      : noise_(noise_amplitude) {
     jack_status_t st{};
     jc_ = jack_client_open(name.c_str(), static_cast<jack_options_t>(JackNoStartServer | JackServerName | JackUseExactName),
                            &st, server.c_str());
@@ -256,13 +258,18 @@ class JackWire {
     auto* out = static_cast<float*>(jack_port_get_buffer(out_, n));
     std::uint64_t loud = 0;
     for (jack_nframes_t i = 0; i < n; ++i) {
-      out[i] = in[i];
+      seed_ ^= seed_ << 13;  // xorshift32: uniform noise in [-noise_, noise_]
+      seed_ ^= seed_ >> 17;
+      seed_ ^= seed_ << 5;
+      out[i] = in[i] + noise_ * (static_cast<float>(seed_) * (2.0f / 4294967296.0f) - 1.0f);
       if (std::abs(in[i]) > 1e-6f) ++loud;
     }
     loud_.fetch_add(loud, std::memory_order_relaxed);
     cycles_.fetch_add(1, std::memory_order_relaxed);
     return 0;
   }
+  float noise_;
+  std::uint32_t seed_ = 0x12345678u;
   jack_client_t* jc_ = nullptr;
   jack_port_t* in_ = nullptr;
   jack_port_t* out_ = nullptr;

@@ -13,7 +13,8 @@
 //                published just before must still arrive.
 //   JackDevice*  one locusd whose device captures from and plays into one JACK client (`audio:` and
 //                `playback:` with the same client_name); `e2e_beep` schedules one LFM chirp through the
-//                emitter; a wire client loops the device's output back to its input; the `chirp`
+//                emitter; a wire client (in this process) loops the device's output back to its input
+//                over a -60 dBFS noise floor (the detector is tuned for a room, not digital silence); the `chirp`
 //                detector of the same device must find the emission exactly one JACK period after the
 //                scheduled frame (synchronous server: docs/hal-jack.md), and only once.
 //   BadConfig*   errors in these sections: config errors exit 2 naming file:line:column (locusd and
@@ -255,7 +256,7 @@ TEST_F(LiveTest, JackDeviceRecordsItsOwnEmissionOnePeriodAfterTheScheduledFrame)
   Jackd jackd(unique_server(), dir(), 256);
   const std::string why = jackd.start();
   ASSERT_EQ(why, "");
-  JackWire wire(jackd.name(), "wire");
+  JackWire wire(jackd.name(), "wire", 1e-3f);  // the chirp at 0.5 over a -60 dBFS noise floor
 
   constexpr std::uint64_t kStart = 88200;  // 2 s into the stream: after the ports are connected
   const std::string s = jackd.name();

@@ -78,7 +78,7 @@ std::vector<std::vector<float>> render(std::size_t channels, std::size_t frames,
 
 struct Harness {
   explicit Harness(std::uint32_t channels, std::initializer_list<std::pair<std::string, ParamValue>> overrides = {},
-                   std::uint32_t max_block = 8192) {
+                   std::uint32_t max_block = 8192, const DeviceGeometry* geometry = nullptr) {
     det.reset(chirp_descriptor()->create_detector());
     Params p = Params::defaults(chirp_schema());
     for (const auto& [k, v] : overrides) p.set(k, v);
@@ -87,7 +87,7 @@ struct Harness {
     info.channels = channels;
     info.sample_rate_hz = kFs;
     info.max_block_frames = max_block;
-    HostContext ctx{host.log, host.clock, fftw, host.link, "chirp_a", "A"};
+    HostContext ctx{host.log, host.clock, fftw, host.link, "chirp_a", "A", geometry};
     det->configure(info, p, ctx);
   }
   std::vector<AudioDetection> run(const std::vector<std::vector<float>>& planar, std::size_t block,
@@ -402,6 +402,30 @@ TEST(ChirpDetector, SeveralTemplatesAreToldApart) {
   EXPECT_EQ(s.missed, 0u);
   EXPECT_EQ(s.extra, 0u);
   EXPECT_LT(s.rms, 0.1);
+}
+
+TEST(ChirpDetector, TemplatesFromTheScenesLfmSignals) {
+  // A listener's config need not repeat the player's beep: with from_scene the detector uses every
+  // distinct lfm of the scene (here a TUM sweep and the AMIL beep; duplicates and non-lfm skipped).
+  const dsp::SignalSpec amil = lfm(18000, 22000, 0.05, 0.005);
+  DeviceGeometry g;
+  g.scene_emits_json =
+      R"([{"id":"A","signal":{"type":"lfm","f0":2000,"f1":8000,"duration":0.04,"fade":0.005,"amplitude":1}},)"
+      R"({"id":"P","signal":{"type":"lfm","f0":18000,"f1":22000,"duration":0.05,"fade":0.005,"amplitude":1}},)"
+      R"({"id":"Q","signal":{"type":"lfm","f0":18000,"f1":22000,"duration":0.05,"fade":0.005,"amplitude":1}},)"
+      R"({"id":"T","signal":{"type":"ble","address":"AA:BB:CC:DD:EE:FF","tx_power_dbm":-59,"interval_s":0.1}}])";
+  std::vector<Emission> ems;
+  for (int i = 0; i < 6; ++i) ems.push_back({0, 3000.0 + i * 0.3 * kFs + 0.37, 0.5, 1});
+  const auto x = render(1, static_cast<std::size_t>(2.2 * kFs), {kTum, amil}, ems, 0.5 * std::sqrt(chirp_power(amil) / 100.0), 5);
+  Harness from_scene(1, {{"from_scene", true}}, 8192, &g);
+  const Stats s = match(from_scene.run(x, 1024), ems);
+  EXPECT_EQ(s.missed, 0u);
+  EXPECT_EQ(s.extra, 0u);
+  EXPECT_LT(s.rms, 0.05);
+  // The same config on a node that knows no scene falls back to f0_hz..fade_s (the 2-8 kHz default),
+  // which does not hear the AMIL beep at all.
+  Harness no_scene(1, {{"from_scene", true}});
+  EXPECT_TRUE(no_scene.run(x, 1024).empty());
 }
 
 TEST(ChirpDetector, GapResetsStateAndCutChirpIsNotReported) {

@@ -2,7 +2,7 @@
 # AMIL scenario test (docs/amil.md, "Accuracy"): the bars, with margin, on fixed seeds of the
 # simulated field test (`locus simulate amil`), through the shipped config (config/amil.yaml):
 #   - normal, one gesture, seeds 3 and 11: every listener located, mean direction error <= DIR1 deg,
-#     no unknown targets;
+#     median distance error (all 12 listeners) <= DIST1 %, no unknown targets;
 #   - normal, three gestures, seed 5: every listener located, mean direction error <= DIR3 deg,
 #     mean position error <= POS3 m.
 # `locus eval` exits 4 when a bar is missed; this script then prints the eval table and fails.
@@ -11,6 +11,7 @@ set -euo pipefail
 locus="$1"
 src="$2"
 DIR1=3.0
+DIST1=20
 DIR3=3.0
 POS3=1.0
 tmp="$(mktemp -d /tmp/locus-amil-scenario.XXXXXX)"
@@ -35,7 +36,7 @@ run_case() {  # name seed gestures eval-options...
   fi
 }
 
-run_case normal-1g-s3 3 1 --min-located-fraction 1.0 --max-direction-error-deg "$DIR1"
-run_case normal-1g-s11 11 1 --min-located-fraction 1.0 --max-direction-error-deg "$DIR1"
+run_case normal-1g-s3 3 1 --min-located-fraction 1.0 --max-direction-error-deg "$DIR1" --max-median-distance-error-pct "$DIST1"
+run_case normal-1g-s11 11 1 --min-located-fraction 1.0 --max-direction-error-deg "$DIR1" --max-median-distance-error-pct "$DIST1"
 run_case normal-3g-s5 5 3 --min-located-fraction 1.0 --max-direction-error-deg "$DIR3" --max-mean-error-m "$POS3"
 exit "$fail"

@@ -126,6 +126,10 @@ dsp::SignalSpec parse_signal_text(std::string_view text, const std::string& name
 /// for each element); DeviceGeometry::emits_json is made with it.
 std::string signals_to_json(const std::vector<dsp::SignalSpec>& signals);
 
+/// Every signal of the scene's devices and emitters as a JSON array of {"id": ..., "signal": {...}}
+/// (DeviceGeometry::scene_emits_json), in scene.yaml order.
+std::string scene_emits_to_json(const Scene& scene);
+
 /// Signal types this reader knows ("lfm", "gold", "multitone", "ble").
 bool is_known_signal_type(const std::string& type) noexcept;
 
