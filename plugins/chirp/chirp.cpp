@@ -403,7 +403,11 @@ class ChirpDetector final : public Detector {
       const std::uint64_t lag = base + i;
       const std::size_t r = r0 + (lag & ring_mask_);
       const double p = pw[i];
-      const bool ok = p > thr && p >= min_rho2_ * eh * std::max(energy_at(i), 0.0);
+      // Digital silence (a JACK dummy port, a file padded with zeros) has no noise floor: there the
+      // threshold is ~0 and the FFT's round-off leaks above it, and rho would pass trivially on
+      // zero input energy. Require real input under the lag (above -120 dBFS over the template).
+      const double ex_i = p > thr ? energy_at(i) : 0.0;
+      const bool ok = p > thr && ex_i > kMinWindowEnergy && p >= min_rho2_ * eh * ex_i;
       ring_re_[r] = re[i];
       ring_im_[r] = im[i];
       ring_pow_[r] = pw[i];
@@ -514,6 +518,7 @@ class ChirpDetector final : public Detector {
   }
 
   static constexpr std::size_t kNoiseStride = 4;  // a multiple of every baseband decimation (4, 2)
+  static constexpr double kMinWindowEnergy = 1e-12;  // sum of x^2 under the template: digital silence
   // Extra margin (-3 dB) of the baseband screen for noise and interference between decimated lags.
   static constexpr double kBasebandMargin = 0.5;
   static constexpr double kMinCycleMargin = 0.3;  // multipath fit: agreement needed to change cycle

@@ -428,6 +428,19 @@ TEST(ChirpDetector, TemplatesFromTheScenesLfmSignals) {
   EXPECT_TRUE(no_scene.run(x, 1024).empty());
 }
 
+TEST(ChirpDetector, DigitalSilenceIsNotANoiseFloor) {
+  // Exact zeros before and between chirps (a JACK dummy port, a zero-padded file): the FFT's round-off
+  // must not be reported, and the first chirp must be found at its frame.
+  std::vector<Emission> ems;
+  for (int i = 0; i < 3; ++i) ems.push_back({0, 4410.0 + i * 22050.0, 0.5, 0});
+  const auto x = render(1, static_cast<std::size_t>(1.5 * kFs), {kTum}, ems, 0.0, 1);
+  Harness h(1);
+  const Stats s = match(h.run(x, 1024), ems);
+  EXPECT_EQ(s.missed, 0u);
+  EXPECT_EQ(s.extra, 0u);
+  EXPECT_LT(s.maxabs, 0.05);
+}
+
 TEST(ChirpDetector, GapResetsStateAndCutChirpIsNotReported) {
   // Frames [0, A) then a gap of G frames (lost), then frames [A+G, ...). A chirp straddles the gap.
   const std::size_t A = 50000, G = 3000, total = 150000;
