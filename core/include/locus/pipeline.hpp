@@ -164,6 +164,7 @@ struct DeviceStats {
   std::uint64_t sensor_events = 0;   ///< sensor events delivered (all streams)
   std::uint64_t sensor_dropped = 0;  ///< sensor events live sources dropped (full queue)
   std::uint64_t sensor_untranslated = 0;  ///< monotonic sensor events delivered without the audio's origin
+  bool has_playback = false;         ///< the device has a `playback:` section
   std::uint64_t playback_xruns = 0;  ///< underruns of the playback sink
   std::uint64_t late_emissions = 0;  ///< emissions cut or refused (Emitter::late_emissions)
   std::string source_error;          ///< first error of the device's sources ("imu source: ..." for sensors,
@@ -186,7 +187,8 @@ struct PipelineOptions {
   /// Write config.output through the pipeline's own JSON-lines writer. False when the embedder
   /// subscribes its own sink (replay: one writer for every node).
   bool write_output = true;
-  /// HostContext::device of the localizers ("" = node-wide). Replay: the node's device id.
+  /// HostContext::device of the localizers ("" = node-wide; on a node with exactly one device the
+  /// localizers serve that device). Replay: the node's device id.
   std::string localizer_device;
   /// Per device id; plugins of a device listed here get HostContext::geometry. A device not listed
   /// here whose config has a `geometry:` section gets that one.

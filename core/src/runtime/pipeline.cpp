@@ -442,7 +442,7 @@ Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions opt
     inst->name = cc.name;
     inst->log = std::make_unique<SpdLogger>(options_.localizer_device.empty() ? cc.name
                                                                               : options_.localizer_device + "/" + cc.name);
-    HostContext ctx{*inst->log, *clock_, *fft_, *dispatched_link_, cc.name, options_.localizer_device, node_geometry,
+    HostContext ctx{*inst->log, *clock_, *fft_, *dispatched_link_, cc.name, served, node_geometry,
                     node_emitter};
     try {
       inst->localizer = registry_.create_localizer(cc.plugin);
@@ -581,12 +581,16 @@ void Pipeline::flush() {
   for (const DeviceStats& s : stats()) {
     auto log = host_logger();
     log->info("device {}: {} frames processed, {} lost in {} overruns, {} sensor events ({} dropped{}), {} events "
-              "dropped{}",
+              "dropped{}{}",
               s.id, s.frames_processed, s.frames_lost, s.overruns, s.sensor_events, s.sensor_dropped,
               s.sensor_untranslated == 0 ? std::string()
                                          : ", " + std::to_string(s.sensor_untranslated) +
                                                " left on CLOCK_MONOTONIC: the live audio had no time origin",
-              s.events_dropped, s.source_error.empty() ? "" : ", source error: " + s.source_error);
+              s.events_dropped,
+              s.has_playback ? ", playback: " + std::to_string(s.playback_xruns) + " xruns, " +
+                                   std::to_string(s.late_emissions) + " emissions late or refused"
+                             : std::string(),
+              s.source_error.empty() ? "" : ", source error: " + s.source_error);
   }
   if (writer_) writer_->flush();
   for (auto& o : outputs_) o->flush();
@@ -615,6 +619,7 @@ std::vector<DeviceStats> Pipeline::stats() const {
     if (dev->queue) s.events_dropped = dev->queue->dropped();
     if (dev->source) s.source_error = dev->source->error();
     if (dev->sink) {
+      s.has_playback = true;
       s.playback_xruns = dev->sink->xruns();
       s.late_emissions = dev->emitter->late_emissions();
       if (s.source_error.empty() && !dev->sink->error().empty()) s.source_error = "playback: " + dev->sink->error();
