@@ -576,16 +576,9 @@ const ParamSchema& chirp_schema() {
                    "emits, in scene order (template_index = position). When the host knows no scene signals (a "
                    "live node) or the scene has no lfm, templates / f0_hz..fade_s apply."),
     };
-    ParamSpec templates;
-    templates.key = "templates";
-    templates.type = ParamType::FloatList;
-    templates.default_value = std::vector<double>{};
-    templates.min = 0.0;
-    templates.max = 96000.0;
-    templates.unit = "";
-    templates.doc = "Several templates: flat list of f0_hz, f1_hz, duration_s, fade_s quadruples (template_index = "
-                    "position); when not empty it replaces f0_hz/f1_hz/duration_s/fade_s.";
-    s.push_back(std::move(templates));
+    s.push_back(float_list_param("templates", std::vector<double>{}, 0.0, 96000.0, "",
+                                 "Several templates: flat list of f0_hz, f1_hz, duration_s, fade_s quadruples "
+                                 "(template_index = position); when not empty it replaces f0_hz/f1_hz/duration_s/fade_s."));
     s.push_back(float_param("threshold_db", 15.0, 3.0, 100.0, "dB",
                       "Detection threshold: envelope peak power of the correlation over its noise power."));
     s.push_back(float_param("min_coefficient", 0.2, 0.0, 1.0, "",
@@ -598,29 +591,15 @@ const ParamSchema& chirp_schema() {
                       "How long after the first threshold crossing a stronger (later) path may still arrive."));
     s.push_back(float_param("min_spacing_s", 0.1, 0.0, 60.0, "s",
                       "Minimum time between two detections of one template on one channel (suppresses echoes)."));
-    ParamSpec pre;
-    pre.key = "prescreen";
-    pre.type = ParamType::Bool;
-    pre.default_value = true;
-    pre.doc = "Skip the correlation of windows without energy in the chirp's band (AMIL's FFT pre-screen).";
-    s.push_back(std::move(pre));
+    s.push_back(bool_param("prescreen", true,
+                           "Skip the correlation of windows without energy in the chirp's band (AMIL's FFT pre-screen)."));
     s.push_back(float_param("prescreen_db", 1.0, 0.0, 60.0, "dB",
                       "Pre-screen: in-band over out-of-band power per bin, above its quiet baseline, needed to correlate."));
-    ParamSpec fft;
-    fft.key = "fft_size";
-    fft.type = ParamType::Int;
-    fft.default_value = std::int64_t{0};
-    fft.min = 0;
-    fft.max = 1 << 22;
-    fft.doc = "Overlap-save FFT size (a power of two larger than the longest template); 0 = 4x the longest template.";
-    s.push_back(std::move(fft));
-    ParamSpec refine;
-    refine.key = "refine";
-    refine.type = ParamType::Enum;
-    refine.default_value = std::string("phase");
-    refine.choices = {"phase", "gaussian", "parabolic"};
-    refine.doc = "Sub-sample timing: envelope fit then carrier phase (phase), or the envelope fit alone.";
-    s.push_back(std::move(refine));
+    s.push_back(int_param("fft_size", std::int64_t{0}, 0, 1 << 22, "",
+                          "Overlap-save FFT size (a power of two larger than the longest template); 0 = 4x the "
+                          "longest template."));
+    s.push_back(enum_param("refine", std::string("phase"), {"phase", "gaussian", "parabolic"},
+                           "Sub-sample timing: envelope fit then carrier phase (phase), or the envelope fit alone."));
     return s;
   }();
   return schema;
