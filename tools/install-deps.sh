@@ -5,7 +5,7 @@ set -euo pipefail
 
 PACKAGES=(
   # toolchain
-  build-essential cmake ninja-build pkg-config git
+  build-essential cmake ninja-build pkg-config git ccache
   # design card libraries
   libasound2-dev libasound2-plugins libjack-jackd2-dev jackd2 libeigen3-dev libfftw3-dev
   libyaml-cpp-dev libbluetooth-dev
