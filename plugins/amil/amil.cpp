@@ -80,6 +80,13 @@ class AmilLocalizer final : public Localizer {
       }
     }
     signal_json_ = sig.dump();
+    // One carrier cycle of the beep: the timing error of an arrival whose cycle the detector is unsure of.
+    if (sig.contains("f0") && sig.contains("f1") && sig["f0"].is_number() && sig["f1"].is_number() &&
+        sig["f0"].get<double>() + sig["f1"].get<double>() > 0.0)
+      carrier_period_s_ = 2.0 / (sig["f0"].get<double>() + sig["f1"].get<double>());
+    // The listening mic's horizontal offset from the device origin (what a listener's position means).
+    if (ctx.geometry != nullptr && channel_ < ctx.geometry->mic_count)
+      mic_offset_m_ = std::hypot(ctx.geometry->mics_m[channel_][0], ctx.geometry->mics_m[channel_][1]);
     beep_gain_ = params.get_float("beep_gain");
     beep_delay_s_ = params.get_float("beep_delay_s");
 
@@ -106,6 +113,8 @@ class AmilLocalizer final : public Localizer {
     solver_.speed_of_sound_mps = params.get_float("speed_of_sound_mps");
     solver_.timing_std_s = params.get_float("timing_std_s");
     solver_.position_std_m = params.get_float("position_std_m");
+    position_std_auto_ = solver_.position_std_m == 0.0;
+    if (position_std_auto_) solver_.position_std_m = 0.01;  // unused: every beep carries the tracker's
     solver_.known_skew = params.get_float("known_skew_ppm") * 1e-6;
     solver_.max_range_m = params.get_float("max_range_m");
     match_tolerance_s_ = params.get_float("match_tolerance_s");
@@ -122,6 +131,9 @@ class AmilLocalizer final : public Localizer {
     tc.min_rest_s = params.get_float("min_rest_s");
     tc.session_gap_s = params.get_float("session_gap_s");
     tc.max_gap_s = params.get_float("max_gap_s");
+    tc.accel_scale_error = params.get_float("accel_scale_error");
+    tc.drift_shape_factor = params.get_float("drift_shape_factor");
+    tc.position_floor_m = params.get_float("position_floor_m");
     if (ctx.geometry != nullptr && ctx.geometry->has_speaker) {
       tc.speaker_body_m = Eigen::Vector3d(ctx.geometry->speaker_m[0], ctx.geometry->speaker_m[1], ctx.geometry->speaker_m[2]);
     }
@@ -136,7 +148,7 @@ class AmilLocalizer final : public Localizer {
       log_->info("amil: player" + (device_.empty() ? std::string(" (device from the first event)") : " " + device_) +
                  "; estimates " + (gesture_mode_ ? "after each gesture" : "at the end") + "; beep " + signal_json_);
     } else {
-      if (!device_.empty()) link_->publish(amil::topic_hello(prefix_, device_), amil::encode(amil::HelloMessage{device_, channel_}));
+      if (!device_.empty()) link_->publish(amil::topic_hello(prefix_, device_), amil::encode(amil::HelloMessage{device_, channel_, mic_offset_m_}));
       log_->debug("amil: listener " + device_);
     }
   }
@@ -153,10 +165,10 @@ class AmilLocalizer final : public Localizer {
       if (!detector_.empty() && !matches_detector(d->detector.view())) return;
       if (!(d->sample_rate_hz > 0.0) || !std::isfinite(d->frame)) return;
       if (role_ == Role::Listener) {
-        amil::ArrivalMessage m{device_, seq_++, d->frame, d->sample_rate_hz, d->channel, d->snr_db};
+        amil::ArrivalMessage m{device_, seq_++, d->frame, d->sample_rate_hz, d->channel, d->snr_db, d->confidence};
         link_->publish(amil::topic_arrival(prefix_, device_), amil::encode(m));
       } else {
-        add_self_beep(d->frame / d->sample_rate_hz);
+        add_self_beep(d->frame / d->sample_rate_hz, d->amplitude);
       }
     } else if (const auto* s = std::get_if<ImuSample>(&event)) {
       if (role_ != Role::Player || !own(s->device.view())) return;
@@ -199,6 +211,8 @@ class AmilLocalizer final : public Localizer {
  private:
   struct ListenerState {
     std::vector<double> arrivals_s;
+    std::vector<double> confidence;  ///< per arrival (same order)
+    double mic_offset_m = 0.0;       ///< from its hello
     std::uint64_t received = 0;
     std::uint64_t lost = 0;       ///< gaps in seq
     std::uint64_t next_seq = 0;
@@ -214,7 +228,7 @@ class AmilLocalizer final : public Localizer {
     if (device_.empty()) {
       device_ = std::string(dev);
       log_->info("amil: serving device " + device_ + " (the first event's)");
-      if (role_ == Role::Listener) link_->publish(amil::topic_hello(prefix_, device_), amil::encode(amil::HelloMessage{device_, channel_}));
+      if (role_ == Role::Listener) link_->publish(amil::topic_hello(prefix_, device_), amil::encode(amil::HelloMessage{device_, channel_, mic_offset_m_}));
     }
     return dev == device_;
   }
@@ -224,12 +238,25 @@ class AmilLocalizer final : public Localizer {
     return name.size() > detector_.size() && name.substr(0, detector_.size()) == detector_ && name[detector_.size()] == '_';
   }
 
-  void add_self_beep(double t_s) {
+  void add_self_beep(double t_s, double amplitude) {
     // One beep per beep length (a second detector or channel may report the same beep).
     for (double b : self_beeps_)
       if (std::abs(b - t_s) < beep_duration_s_) return;
-    self_beeps_.insert(std::upper_bound(self_beeps_.begin(), self_beeps_.end(), t_s), t_s);
+    const auto at = std::upper_bound(self_beeps_.begin(), self_beeps_.end(), t_s);
+    self_amplitude_.insert(self_amplitude_.begin() + (at - self_beeps_.begin()), amplitude);
+    self_beeps_.insert(at, t_s);
   }
+
+  /// A beep of the player's own speaker a few cm from its mic is far louder than anything else the
+  /// self-recording holds (an echo, another device's beep, a burst that correlates): detections well
+  /// below the loudest ones are not its beeps.
+  bool own_beep(std::size_t i) const {
+    std::vector<double> a(self_amplitude_);
+    if (a.size() < 3) return true;
+    std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(a.size() / 2), a.end());
+    return self_amplitude_[i] >= kSelfBeepMinRatio * a[a.size() / 2];
+  }
+  static constexpr double kSelfBeepMinRatio = 0.25;  // -12 dB below the median self-beep
 
   void beep_now(const char* why) {
     if (emitter_ == nullptr) return;
@@ -252,7 +279,7 @@ class AmilLocalizer final : public Localizer {
       return;
     }
     if (d.hello) {
-      listeners_[d.hello->listener];
+      listeners_[d.hello->listener].mic_offset_m = d.hello->mic_offset_m;
     } else if (d.arrival) {
       if (d.arrival->listener == device_) return;
       ListenerState& l = listeners_[d.arrival->listener];
@@ -260,6 +287,7 @@ class AmilLocalizer final : public Localizer {
       l.next_seq = std::max(l.next_seq, d.arrival->seq + 1);
       ++l.received;
       l.arrivals_s.push_back(d.arrival->t_s());
+      l.confidence.push_back(d.arrival->confidence);
     } else if (d.done) {
       ListenerState& l = listeners_[d.done->listener];
       l.done = true;
@@ -272,15 +300,19 @@ class AmilLocalizer final : public Localizer {
     std::vector<amil::Beep> out;
     if (s.pauses.empty()) return out;
     const double lo = s.pauses.front().t_start_s, hi = s.pauses.back().t_end_s;
-    for (double t : self_beeps_) {
-      if (t < lo - 0.5 * beep_duration_s_ || t >= hi) continue;
+    for (std::size_t i = 0; i < self_beeps_.size(); ++i) {
+      const double t = self_beeps_[i];
+      if (t < lo - 0.5 * beep_duration_s_ || t >= hi || !own_beep(i)) continue;
       Eigen::Vector3d sp;
       bool in_pause = false;
-      if (!s.speaker_at(t + 0.5 * beep_duration_s_, sp, &in_pause)) continue;
+      double track_std_m = 0.0;
+      if (!s.speaker_at(t + 0.5 * beep_duration_s_, sp, &in_pause, &track_std_m)) continue;
       if (!in_pause && in_motion != nullptr) ++*in_motion;
       amil::Beep b;
       b.position_m = sp.head<2>();
       b.player_time_s = t;
+      // The tracker's own error model (tracker.hpp "Uncertainty"); position_std_m: "auto" = that.
+      b.position_std_m = position_std_auto_ ? track_std_m : solver_.position_std_m;
       out.push_back(b);
     }
     return out;
@@ -347,6 +379,18 @@ class AmilLocalizer final : public Localizer {
       int matched = 0;
       amil::ListenerArrivals arr;
       arr.arrival_s = amil::match_arrivals(times, l.arrivals_s, match_tolerance_s_, &matched);
+      // Per-arrival timing error: the base error plus, for a detection unsure of its carrier cycle
+      // (confidence < 1: the multipath fit disagreed), that fraction of a cycle.
+      arr.arrival_std_s.assign(arr.arrival_s.size(), solver_.timing_std_s);
+      for (std::size_t k = 0; k < arr.arrival_s.size(); ++k) {
+        const auto it = std::find(l.arrivals_s.begin(), l.arrivals_s.end(), arr.arrival_s[k]);
+        if (it == l.arrivals_s.end()) continue;
+        const double conf = l.confidence[static_cast<std::size_t>(it - l.arrivals_s.begin())];
+        const double slip_s = (1.0 - std::clamp(conf, 0.0, 1.0)) * carrier_period_s_;
+        arr.arrival_std_s[k] = std::hypot(solver_.timing_std_s, slip_s);
+      }
+      // The listener's position is its device's; the mic is at an unknown heading mic_offset_m away.
+      arr.reference_offset_std_m = l.mic_offset_m / std::sqrt(2.0);
       if (matched < 3) {
         log_->warn(tag + ": listener " + id + ": " + std::to_string(matched) + " of " + std::to_string(beeps.size()) +
                    " beeps paired with its arrivals (3 needed)");
@@ -364,6 +408,10 @@ class AmilLocalizer final : public Localizer {
                    (ns.note.empty() ? std::string() : " (" + ns.note + ")"));
       } else {
         for (std::size_t i = 0; i < ids.size(); ++i) sols[i] = amil::solve(beeps, arrs[i], solver_);
+        // One listener's fit has ~1 degree of freedom: scale the uncertainty by the session's pooled
+        // residuals and flag listeners far beyond them (solver.hpp calibrate_session()).
+        const double factor = amil::calibrate_session(sols, solver_);
+        log_->info(tag + ": session noise factor " + fmt("%.2f", factor) + " (pooled chi2/dof of the listeners)");
       }
     } catch (const std::exception& e) {
       log_->error(tag + ": solver: " + e.what());
@@ -385,11 +433,17 @@ class AmilLocalizer final : public Localizer {
       e.t_s = s.t_start_s;
       e.dims = 2;
       e.direction_rad = sol.direction_rad;
+      e.direction_std_rad = sol.direction_std_rad;
       if (sol.located()) {
         e.position_m = {sol.position_m.x(), sol.position_m.y(), kNaN};
         e.distance_m = sol.distance_m;
         e.std_m = sol.std_m;
+        e.distance_std_m = sol.distance_std_m;
+      } else {
+        e.flags |= kEstimateDirectionOnly;
       }
+      if (sol.status == amil::Status::Ambiguous) e.flags |= kEstimateAmbiguous;
+      if (sol.inconsistent) e.flags |= kEstimateInconsistent;
       e.confidence = static_cast<float>(std::clamp(sol.confidence, 0.0, 1.0));
       out.publish(e);
       ++published_;
@@ -410,17 +464,17 @@ class AmilLocalizer final : public Localizer {
       log_->error("amil: param 'track_csv': cannot write '" + track_csv_ + "'");
       return;
     }
-    f << "session,t0_s,kind,t_s,x_m,y_m\n";
+    f << "session,t0_s,kind,t_s,x_m,y_m,std_m\n";
     f.precision(9);
     for (const Session& s : tracker_->sessions()) {
       for (std::size_t k = 0; k < s.movements.size(); ++k) {
         const auto& m = s.movements[k];
         for (std::size_t i = 0; i < m.t_s.size(); ++i)
-          f << s.id << ',' << s.t_start_s << ",path," << m.t_s[i] << ',' << m.body_m[i].x() << ',' << m.body_m[i].y() << '\n';
+          f << s.id << ',' << s.t_start_s << ",path," << m.t_s[i] << ',' << m.body_m[i].x() << ',' << m.body_m[i].y() << ",\n";
       }
       for (const auto& b : session_beeps(s, nullptr))
         f << s.id << ',' << s.t_start_s << ",beep," << b.player_time_s << ',' << b.position_m.x() << ',' << b.position_m.y()
-          << '\n';
+          << ',' << b.position_std_m << '\n';
     }
   }
 
@@ -429,6 +483,7 @@ class AmilLocalizer final : public Localizer {
   const Clock* clock_ = nullptr;
   Emitter* emitter_ = nullptr;
   std::string instance_, device_, prefix_, detector_, player_id_, signal_json_, track_csv_;
+  bool position_std_auto_ = true;
   std::uint32_t channel_ = 0;
   int template_index_ = -1;
   Role role_ = Role::Listener;
@@ -442,6 +497,9 @@ class AmilLocalizer final : public Localizer {
   std::uint64_t seq_ = 0;
   // player
   std::vector<double> self_beeps_;
+  std::vector<double> self_amplitude_;  ///< detection amplitude of each self beep (same order)
+  double carrier_period_s_ = 1.0 / 20000.0;
+  double mic_offset_m_ = 0.0;
   std::map<std::string, ListenerState> listeners_;
   std::map<std::uint64_t, std::set<std::string>> published_for_;
   std::set<std::uint64_t> reported_sessions_, warned_few_;
@@ -468,7 +526,13 @@ const ParamSchema& amil_schema() {
                  "Positioning method (solver.hpp): the paper's subsets + 10-degree filter, joint position+skew least squares, or all listeners at once."),
       float_param("speed_of_sound_mps", 343.2, 300.0, 400.0, "m/s", "Speed of sound."),
       float_param("timing_std_s", 1.0e-6, 1e-9, 1e-2, "s", "Arrival timing error (1 sigma) assumed by the solver."),
-      float_param("position_std_m", 0.01, 1e-5, 1.0, "m", "Beep position error per axis (1 sigma) assumed by the solver."),
+      float_param("position_std_m", 0.0, 0.0, 1.0, "m",
+                  "Beep position error per axis (1 sigma) assumed by the solver; 0 = the tracker's own error model per beep."),
+      float_param("accel_scale_error", 0.005, 0.0, 0.2, "",
+                  "Tracker error model: relative accelerometer scale + cross-axis error (1 sigma)."),
+      float_param("drift_shape_factor", 0.1, 0.0, 10.0, "",
+                  "Tracker error model: residual of the linear velocity de-drift as a fraction of v_end*T (1 sigma)."),
+      float_param("position_floor_m", 0.0005, 0.0, 0.1, "m", "Tracker error model: per-axis floor of a pause position (1 sigma)."),
       float_param("known_skew_ppm", 0.0, -1000.0, 1000.0, "ppm", "paper method: the listeners' calibrated clock skew."),
       float_param("max_range_m", 30.0, 0.5, 1000.0, "m", "Farther solutions are reported as a direction only."),
       float_param("match_tolerance_s", 0.02, 1e-4, 0.5, "s", "Pairing window of a listener arrival with a player beep."),

@@ -65,14 +65,16 @@ std::string topic_filter(std::string_view prefix) { return std::string(prefix) +
 
 std::string encode(const ArrivalMessage& m) {
   json j{{"type", "amil_arrival"}, {"listener", m.listener}, {"seq", m.seq},          {"frame", m.frame},
-         {"sample_rate_hz", m.sample_rate_hz}, {"t_s", m.t_s()},      {"channel", m.channel}, {"snr_db", m.snr_db}};
+         {"sample_rate_hz", m.sample_rate_hz}, {"t_s", m.t_s()},      {"channel", m.channel}, {"snr_db", m.snr_db},
+         {"confidence", m.confidence}};
   return j.dump();
 }
 std::string encode(const DoneMessage& m) {
   return json{{"type", "amil_done"}, {"listener", m.listener}, {"arrivals", m.arrivals}}.dump();
 }
 std::string encode(const HelloMessage& m) {
-  return json{{"type", "amil_hello"}, {"listener", m.listener}, {"channel", m.channel}}.dump();
+  return json{{"type", "amil_hello"}, {"listener", m.listener}, {"channel", m.channel}, {"mic_offset_m", m.mic_offset_m}}
+      .dump();
 }
 
 Decoded decode(std::string_view prefix, std::string_view topic, std::string_view payload) {
@@ -139,6 +141,12 @@ Decoded decode(std::string_view prefix, std::string_view topic, std::string_view
       out.error = "payload: expected sample_rate_hz > 0, frame >= 0 and channel < 65536";
       return out;
     }
+    if (j.contains("confidence")) {
+      if (!get_number(j, "confidence", m.confidence, err) || m.confidence < 0.0 || m.confidence > 1.0) {
+        out.error = "payload: field 'confidence': expected a number in [0, 1]";
+        return out;
+      }
+    }
     m.channel = static_cast<std::uint32_t>(channel);
     out.arrival = m;
   } else if (kind == "done") {
@@ -158,6 +166,12 @@ Decoded decode(std::string_view prefix, std::string_view topic, std::string_view
       return out;
     }
     m.channel = static_cast<std::uint32_t>(channel);
+    if (j.contains("mic_offset_m")) {
+      if (!get_number(j, "mic_offset_m", m.mic_offset_m, err) || m.mic_offset_m < 0.0 || m.mic_offset_m > 10.0) {
+        out.error = "payload: field 'mic_offset_m': expected a number in [0, 10] (metres)";
+        return out;
+      }
+    }
     out.hello = m;
   }
   return out;

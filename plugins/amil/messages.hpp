@@ -6,9 +6,11 @@
 // malformed message gives a reason (the plugin logs it with the topic and counts it), never a crash.
 //
 // Topics (prefix = the plugin's `topic` parameter, default "amil"):
-//   <prefix>/hello/<listener>     {"type":"amil_hello","listener":"L1","channel":0}
+//   <prefix>/hello/<listener>     {"type":"amil_hello","listener":"L1","channel":0,"mic_offset_m":0.072}
 //   <prefix>/arrivals/<listener>  {"type":"amil_arrival","listener":"L1","seq":0,"frame":123456.789,
-//                                  "sample_rate_hz":44100.0,"t_s":2.79947,"channel":0,"snr_db":31.5}
+//                                  "sample_rate_hz":44100.0,"t_s":2.79947,"channel":0,"snr_db":31.5,
+//                                  "confidence":0.98}
+// `mic_offset_m` and `confidence` are optional (older listeners): absent = unknown (0) and 1.
 //   <prefix>/done/<listener>      {"type":"amil_done","listener":"L1","arrivals":5}
 // Times are the listener's own clock (frame counter of its audio stream), never converted: relating the
 // clocks is the solver's job (offset and skew).
@@ -29,6 +31,7 @@ struct ArrivalMessage {
   double sample_rate_hz = 0.0;    ///< nominal rate of that stream
   std::uint32_t channel = 0;
   double snr_db = 0.0;
+  double confidence = 1.0;        ///< the detector's confidence, 0..1 (< 1: the carrier cycle is uncertain)
   double t_s() const { return frame / sample_rate_hz; }
 };
 
@@ -40,6 +43,7 @@ struct DoneMessage {
 struct HelloMessage {
   std::string listener;
   std::uint32_t channel = 0;
+  double mic_offset_m = 0.0;      ///< horizontal distance of the listening mic from the device origin (0 = unknown)
 };
 
 std::string topic_hello(std::string_view prefix, std::string_view listener);

@@ -572,10 +572,11 @@ Obs make_obs(const std::vector<Beep>& beeps, const ListenerArrivals& arr, const 
     const double a = arr.arrival_s[k];
     if (!std::isfinite(a) || !std::isfinite(b.player_time_s) || !b.position_m.allFinite()) continue;
     const double pstd = with_position_std ? (std::isfinite(b.position_std_m) ? b.position_std_m : cfg.position_std_m) : 0.0;
+    const double tstd_k = k < arr.arrival_std_s.size() && std::isfinite(arr.arrival_std_s[k]) ? arr.arrival_std_s[k] : tstd;
     o.p.push_back(b.position_m);
     o.a.push_back(a);
     o.e.push_back(b.player_time_s);
-    o.sigma.push_back(std::max(1e-7, std::sqrt(c * tstd * c * tstd + pstd * pstd)));
+    o.sigma.push_back(std::max(1e-7, std::sqrt(c * tstd_k * c * tstd_k + pstd * pstd)));
     o.index.push_back(static_cast<int>(k));
   }
   for (int k = 0; k < o.n(); ++k) {
@@ -606,6 +607,9 @@ void finish_position(Solution& s, const SolverConfig& cfg) {
 
 void validate(const std::vector<Beep>& beeps, const ListenerArrivals& arr, const SolverConfig& cfg) {
   auto bad = [](const std::string& what) { throw std::invalid_argument("amil solver: " + what); };
+  if (!arr.arrival_std_s.empty() && arr.arrival_std_s.size() != arr.arrival_s.size())
+    bad("arrival_std_s has " + std::to_string(arr.arrival_std_s.size()) + " entries, expected 0 or one per arrival");
+  if (!(arr.reference_offset_std_m >= 0.0)) bad("reference_offset_std_m must be >= 0");
   if (arr.arrival_s.size() != beeps.size())
     bad("arrivals has " + std::to_string(arr.arrival_s.size()) + " entries, expected one per beep (" +
         std::to_string(beeps.size()) + ")");
@@ -742,6 +746,7 @@ Solution solve(const std::vector<Beep>& beeps, const ListenerArrivals& arr, cons
   validate(beeps, arr, cfg);
   Solution sol;
   sol.method = cfg.method;
+  sol.reference_offset_std_m = arr.reference_offset_std_m;
   const double c = cfg.speed_of_sound_mps;
   const double given_skew = std::isfinite(arr.known_skew) ? arr.known_skew : cfg.known_skew;
   // ---- the heard beeps
@@ -832,6 +837,10 @@ Solution solve(const std::vector<Beep>& beeps, const ListenerArrivals& arr, cons
     sol.rms_residual_s = std::sqrt(r.squaredNorm() / std::max(1, jr.used.n())) / c;
   }
   const double chi2 = f.cost;
+  sol.fit_position_m = f.x;
+  sol.fit_covariance_m2 = P.allFinite() ? Eigen::Matrix2d(P.topLeftCorner<2, 2>()) : Eigen::Matrix2d::Constant(kNaN);
+  sol.chi2 = chi2;
+  sol.dof = dof;
   // inflate the a-priori covariance when the residuals say the sigmas were optimistic
   const double inflate = dof > 0 ? std::max(1.0, chi2 / dof) : 1.0;
   Eigen::Matrix2d P2 = P.allFinite() ? Eigen::Matrix2d(P.topLeftCorner<2, 2>() * inflate)
@@ -1081,6 +1090,60 @@ NetworkSolution solve_network(const std::vector<Beep>& beeps, const std::vector<
     s.confidence = geo * fit_confidence(cost, dof) * (s.status == Status::Ambiguous ? 0.5 : 1.0);
   }
   return out;
+}
+
+}  // namespace locus::amil
+
+namespace locus::amil {
+
+namespace {
+
+/// 99.9 % quantile of chi²(dof) (exact table to 10, Wilson-Hilferty beyond).
+double chi2_q999(int dof) {
+  static constexpr double kTable[] = {10.828, 13.816, 16.266, 18.467, 20.515, 22.458, 24.322, 26.124, 27.877, 29.588};
+  if (dof >= 1 && dof <= 10) return kTable[dof - 1];
+  const double k = dof, z = 3.0902;
+  const double t = 1.0 - 2.0 / (9.0 * k) + z * std::sqrt(2.0 / (9.0 * k));
+  return k * t * t * t;
+}
+
+}  // namespace
+
+double calibrate_session(std::vector<Solution>& listeners, const SolverConfig& cfg) {
+  // Robust pooled factor: listeners whose chi²/dof is beyond the 99.9 % quantile do not vote.
+  double sum_chi2 = 0.0;
+  int sum_dof = 0;
+  for (const Solution& s : listeners) {
+    if (s.dof <= 0 || !std::isfinite(s.chi2) || !s.fit_covariance_m2.allFinite()) continue;
+    if (s.chi2 > chi2_q999(s.dof)) continue;
+    sum_chi2 += s.chi2;
+    sum_dof += s.dof;
+  }
+  const double factor = sum_dof >= 3 ? std::max(1.0, sum_chi2 / sum_dof) : 1.0;
+  for (Solution& s : listeners) {
+    if (s.dof <= 0 || !std::isfinite(s.chi2) || !s.fit_covariance_m2.allFinite() || !s.fit_position_m.allFinite()) continue;
+    if (s.status == Status::Failed) continue;
+    if (std::isfinite(s.skew) && std::abs(s.skew) > cfg.max_abs_skew) continue;  // already direction-only for its skew
+    s.inconsistent = s.chi2 > factor * chi2_q999(s.dof);
+    const Eigen::Matrix2d P = s.fit_covariance_m2 * factor +
+                              Eigen::Matrix2d::Identity() * (s.reference_offset_std_m * s.reference_offset_std_m);
+    // Recompute from the fitted point: position, stds, the direction-only decision.
+    const Status before = s.status;
+    s.status = before == Status::Ambiguous ? Status::Ambiguous : Status::Located;
+    s.position_m = s.fit_position_m;
+    fill_uncertainty(s, P);
+    const std::string::size_type cut = s.note.find("distance not determined");
+    if (cut != std::string::npos) s.note.erase(cut);
+    finish_position(s, cfg);
+    const double geo = s.located() ? geometry_confidence(s.std_m / std::max(s.distance_m, 0.1))
+                                   : 0.5 * geometry_confidence(s.direction_std_rad);
+    s.confidence = geo * (s.status == Status::Ambiguous ? 0.5 : 1.0) * (s.inconsistent ? 0.1 : 1.0);
+    if (s.inconsistent) {
+      s.note += "residuals " + std::to_string(std::sqrt(s.chi2 / std::max(1, s.dof) / factor)) +
+                " sigma beyond the session's noise: inconsistent; ";
+    }
+  }
+  return factor;
 }
 
 }  // namespace locus::amil

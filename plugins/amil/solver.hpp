@@ -80,6 +80,12 @@ struct ListenerArrivals {
   std::vector<double> arrival_s;           ///< listener clock; NaN = missed
   double timing_std_s = kNaN;              ///< 1-sigma error of a_k − (1+s)·e_k (listener and player ends combined); NaN = SolverConfig::timing_std_s
   double known_skew = kNaN;                ///< calibration for Paper (listener vs player); NaN = SolverConfig::known_skew
+  /// Optional per-arrival 1-sigma timing error (same length as arrival_s; empty = timing_std_s for all),
+  /// e.g. inflated where the detector was unsure of the carrier cycle.
+  std::vector<double> arrival_std_s;
+  /// Per-axis 1-sigma offset between the point the arrivals measure (the listening mic) and the point
+  /// reported (the listener device); added to the position covariance by calibrate_session().
+  double reference_offset_std_m = 0.0;
 };
 
 struct SolverConfig {
@@ -124,6 +130,14 @@ struct Solution {
   std::vector<Eigen::Vector2d> alternatives;  ///< other candidate positions (Ambiguous)
   std::vector<Eigen::Vector2d> candidates;    ///< Paper: the kept subset solutions (for maps/debugging)
   std::string note;                        ///< why DirectionOnly/Ambiguous/Failed, or which beep was dropped
+  // Fit statistics (Joint/Robust), for calibrate_session(): the fitted point even when the result is
+  // direction-only, its a-priori covariance (before any inflation), chi² and degrees of freedom.
+  Eigen::Vector2d fit_position_m{kNaN, kNaN};
+  Eigen::Matrix2d fit_covariance_m2 = Eigen::Matrix2d::Constant(kNaN);
+  double chi2 = kNaN;
+  int dof = 0;
+  bool inconsistent = false;               ///< residuals far beyond their noise (calibrate_session())
+  double reference_offset_std_m = 0.0;     ///< ListenerArrivals::reference_offset_std_m (calibrate_session())
   bool located() const { return status == Status::Located || status == Status::Ambiguous; }
 };
 
@@ -151,6 +165,17 @@ struct NetworkSolution {
 };
 NetworkSolution solve_network(const std::vector<Beep>& beeps, const std::vector<ListenerArrivals>& arrivals,
                               const SolverConfig& cfg);
+
+/// [main] Session-level calibration of the uncertainty of all listeners of one gesture (Joint/Robust
+/// solutions; others are left as they are). One listener's fit has few degrees of freedom (one with
+/// 5 beeps), so its own chi² is too noisy to scale its covariance; the listeners of a session share the
+/// player's track and detector, so their pooled residuals (robust mean of chi²/dof over the listeners)
+/// say how optimistic the a-priori sigmas were. Every covariance is scaled by max(1, that factor) and
+/// std_m / direction / distance stds, the direction-only decision and the confidence are recomputed.
+/// A listener whose chi² exceeds the 99.9 % quantile of chi²(dof) times the session factor is marked
+/// `inconsistent` (its confidence divided by 10): an arrival that is not the direct path, a cycle slip.
+/// Returns the session factor (1 when nothing could be pooled).
+double calibrate_session(std::vector<Solution>& listeners, const SolverConfig& cfg);
 
 /// The closed form of one 3-beep subset (Sec. II-E, Eq. 1): listener x with |x − p_j| − |x − p_i| =
 /// dd_j and |x − p_k| − |x − p_i| = dd_k. Returns 0, 1 or 2 points (any frame). Exposed for tests.

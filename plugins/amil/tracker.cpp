@@ -19,11 +19,12 @@ Eigen::Quaterniond rotation_vector(const Eigen::Vector3d& v) {
 
 }  // namespace
 
-bool Session::speaker_at(double t_s, Eigen::Vector3d& out_m, bool* in_pause) const {
+bool Session::speaker_at(double t_s, Eigen::Vector3d& out_m, bool* in_pause, double* std_m) const {
   for (const Pause& p : pauses) {
     if (t_s >= p.t_start_s && t_s < p.t_end_s) {
       out_m = p.speaker_m;
       if (in_pause != nullptr) *in_pause = true;
+      if (std_m != nullptr) *std_m = p.position_std_m;
       return true;
     }
   }
@@ -43,6 +44,7 @@ bool Session::speaker_at(double t_s, Eigen::Vector3d& out_m, bool* in_pause) con
     }
     const Pause& after = pauses[k + 1];
     out_m = body + (after.speaker_m - after.body_m);
+    if (std_m != nullptr) *std_m = std::max(pauses[k].position_std_m, after.position_std_m);
     if (in_pause != nullptr) *in_pause = t_s < m.t_active_start_s || t_s > m.t_active_end_s;
     return true;
   }
@@ -69,6 +71,7 @@ void GestureTracker::reset_state() {
   prev_bin_.clear();
   rest_start_ = std::numeric_limits<double>::quiet_NaN();
   rest_a_sum_.setZero();
+  rest_a_sq_sum_.setZero();
   rest_w_sum_.setZero();
   rest_n_ = 0;
   have_rest_ = false;
@@ -139,6 +142,7 @@ void GestureTracker::end_bin() {
       // The previous bin is confirmed rest (one bin of lag keeps a movement's onset out of it).
       for (const Sample& s : prev_bin_) {
         rest_a_sum_ += s.a;
+        rest_a_sq_sum_ += s.a.cwiseProduct(s.a);
         rest_w_sum_ += s.w;
         ++rest_n_;
       }
@@ -183,6 +187,13 @@ void GestureTracker::start_movement(double t_start) {
   move_start_ = t_start;
   const double rest_len = rest_n_ > 0 ? t_start - rest_start_ : 0.0;
   if (rest_n_ > 0) gyro_bias_ = rest_w_sum_ / static_cast<double>(rest_n_);
+  if (rest_n_ > 1) {
+    // Per-axis sample variance at rest (the horizontal axes' mean is what the integration sees).
+    const double n = static_cast<double>(rest_n_);
+    const Eigen::Vector3d mean = rest_a_sum_ / n;
+    const Eigen::Vector3d var = (rest_a_sq_sum_ / n - mean.cwiseProduct(mean)).cwiseMax(0.0) * (n / (n - 1.0));
+    accel_noise_mps2_ = std::sqrt(var.mean());
+  }
   if (!session_open_) {
     if (rest_n_ == 0 || rest_len + 1e-9 < cfg_.min_rest_s) return;  // no rest to learn gravity from: untracked
     // Open a session: T = the start of this movement.
@@ -196,6 +207,8 @@ void GestureTracker::start_movement(double t_start) {
     p0.t_end_s = t_start;
     p0.body_m.setZero();
     p0.speaker_m = s.level * cfg_.speaker_body_m;
+    p0.position_std_m = 0.0;  // the origin of the frame: exact by definition
+    session_var_m2_ = 0.0;
     s.pauses.push_back(p0);
     // The previous closed session's last pause ends where this one starts.
     if (!sessions_.empty() && sessions_.back().closed && !sessions_.back().pauses.empty() &&
@@ -249,12 +262,20 @@ void GestureTracker::end_movement(double t_end) {
       m.body_m.push_back(start_body + p);
     }
     m.displacement_m = p;
+    // Uncertainty (tracker.hpp): noise bridge + de-drift residual accumulate; scale error ~ displacement.
+    const double dt_mean = n > 1 ? span / static_cast<double>(n - 1) : 0.0;
+    const double noise_sd = accel_noise_mps2_ * std::sqrt(dt_mean * span * span * span / 12.0);
+    const double drift_sd = cfg_.drift_shape_factor * m.end_speed_mps * span;
+    m.accumulated_var_m2 = noise_sd * noise_sd + drift_sd * drift_sd;
+    session_var_m2_ += m.accumulated_var_m2;
     q_ = q;
     Pause next;
     next.t_start_s = t_end;
     next.t_end_s = kInf;
     next.body_m = start_body + p;
     next.speaker_m = next.body_m + L * (q_ * cfg_.speaker_body_m);
+    const double scale_sd = cfg_.accel_scale_error * next.body_m.head<2>().norm();
+    next.position_std_m = std::sqrt(session_var_m2_ + scale_sd * scale_sd + cfg_.position_floor_m * cfg_.position_floor_m);
     s.movements.push_back(std::move(m));
     s.pauses.push_back(next);
   }
@@ -262,6 +283,7 @@ void GestureTracker::end_movement(double t_end) {
   // A new rest starts after the movement.
   rest_start_ = t_end;
   rest_a_sum_.setZero();
+  rest_a_sq_sum_.setZero();
   rest_w_sum_.setZero();
   rest_n_ = 0;
   prev_bin_.clear();  // its samples belong to the movement

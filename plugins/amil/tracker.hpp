@@ -29,6 +29,14 @@
 //     v'(t) = v(t) − v(t_end)·(t − t_start)/(t_end − t_start) (any constant acceleration error goes);
 //     v' is integrated to the displacement. During a pause the position holds.
 //
+// Uncertainty: every pause carries a 1-sigma per-axis error of its position, from three terms that the
+// de-drift does not remove: (a) white accelerometer noise, double-integrated over each movement and
+// pinned at both ends (a Brownian bridge: sigma_a·sqrt(dt·T³/12) per movement, sigma_a measured at rest),
+// accumulating over the movements; (b) accelerometer scale and cross-axis errors, proportional to the
+// displacement from the session start (they cancel when the gesture returns to its start); (c) the
+// non-constant part of the acceleration error (tilt from gyro bias, bias random walk), which the linear
+// de-drift leaves behind: a fraction of the drift it removed (v_end·T), accumulating; plus a floor.
+//
 // Sessions: a session (one localisation: one or several gestures) opens at the first movement after a
 // rest of at least `min_rest_s` and closes after a rest of `session_gap_s` (or by close_session()).
 // Its start frame ("player_start@T", docs/eval.md): origin = the device body origin at T (the start
@@ -55,6 +63,10 @@ struct TrackerConfig {
   double session_gap_s = 2.0;           ///< a rest this long closes the session
   double max_gap_s = 0.25;              ///< longer IMU gaps abandon the open session
   Eigen::Vector3d speaker_body_m = Eigen::Vector3d::Zero();  ///< speaker in the body frame (geometry)
+  // Uncertainty model of the tracked positions (see "Uncertainty" above).
+  double accel_scale_error = 0.005;     ///< relative scale + cross-axis error of the accelerometer (1 sigma)
+  double drift_shape_factor = 0.1;      ///< residual of the linear de-drift, as a fraction of v_end·T (1 sigma)
+  double position_floor_m = 0.0005;     ///< error of a pause position that no term models (hand wiggle), per axis
 };
 
 /// One rest of the player inside a session (the first one ends at the session start T).
@@ -63,6 +75,7 @@ struct Pause {
   double t_end_s = 0.0;         ///< the next movement's start; +inf while the pause lasts
   Eigen::Vector3d body_m = Eigen::Vector3d::Zero();     ///< body origin in the start frame
   Eigen::Vector3d speaker_m = Eigen::Vector3d::Zero();  ///< speaker in the start frame
+  double position_std_m = 0.0;  ///< 1-sigma error per horizontal axis of body_m / speaker_m ("Uncertainty")
 };
 
 /// One movement between two pauses.
@@ -71,6 +84,7 @@ struct Movement {
   double t_active_start_s = 0.0, t_active_end_s = 0.0;  ///< first to last moving bin: outside it the phone rests
   Eigen::Vector3d displacement_m = Eigen::Vector3d::Zero();  ///< start frame
   double end_speed_mps = 0.0;   ///< |v(t_end)| before de-drift (size of the drift removed)
+  double accumulated_var_m2 = 0.0;  ///< variance this movement adds to every later pause (noise + drift terms)
   std::vector<double> t_s;      ///< sample times of the integrated trajectory
   std::vector<Eigen::Vector3d> body_m;  ///< body origin in the start frame at t_s (after de-drift)
 };
@@ -87,8 +101,9 @@ struct Session {
   /// Where the speaker was at device-local time t: the pause holding t, or inside a movement the
   /// interpolated trajectory (plus the speaker offset at the movement's end attitude). `in_pause`:
   /// false when t lies between the movement's first and last moving bin (the margins are rest).
-  /// t before the first pause or after the end returns false.
-  bool speaker_at(double t_s, Eigen::Vector3d& out_m, bool* in_pause = nullptr) const;
+  /// t before the first pause or after the end returns false. `std_m` (when given): the position's 1-sigma
+  /// error per horizontal axis (the pause's; inside a movement the larger of the two pauses around it).
+  bool speaker_at(double t_s, Eigen::Vector3d& out_m, bool* in_pause = nullptr, double* std_m = nullptr) const;
 };
 
 struct TrackerCounters {
@@ -149,6 +164,9 @@ class GestureTracker {
   std::uint64_t rest_n_ = 0;
   Eigen::Vector3d rest_a_ = Eigen::Vector3d::Zero();  ///< rest reference (body frame)
   Eigen::Vector3d gyro_bias_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d rest_a_sq_sum_ = Eigen::Vector3d::Zero();  ///< per-axis sum of squares at rest (noise level)
+  double accel_noise_mps2_ = 0.0;  ///< white accelerometer noise per sample (per axis), from the last rest
+  double session_var_m2_ = 0.0;    ///< accumulated noise + drift variance of the open session
   bool have_rest_ = false;
   // movement in progress
   bool moving_ = false;

@@ -14,7 +14,7 @@ Subcommand add_replay_command(CLI::App& cli) {
   cmd->add_option("--speed", opts->speed, "max (as fast as possible, exact time order) or realtime (paced)")
       ->check(CLI::IsMember({"max", "realtime"}));
   cmd->add_option("-o,--out", opts->output, "write JSON lines here ('-' = stdout; default: the config's output.path)");
-  cmd->add_option("--events", opts->events, "comma-separated event types to write (default: estimate)");
+  cmd->add_option("--events", opts->events, "comma-separated event types to write (default: the config's output.events, else estimate)");
   cmd->add_option("--log-level", opts->log_level, "trace|debug|info|warn|error (overrides the config)")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}));
   return Subcommand{cmd, [opts] { return run_replay(*opts); }};

@@ -158,7 +158,9 @@ int run_replay(const ReplayOptions& opts) {
   set_log_level(level);
   auto log = host_logger();
 
+  // --events, else the config's output.events when it has one, else estimates only.
   std::vector<EventType> events{EventType::Estimate};
+  if (!opts.events && config.output.events_given) events = config.output.events;
   if (opts.events) {
     events.clear();
     std::string_view rest(*opts.events);

@@ -190,14 +190,16 @@ def main():
     ap.add_argument('--plugin-config')
     ap.add_argument('--plugin-method', default='')
     ap.add_argument('--json')
+    ap.add_argument('--scenes', default='', help='comma-separated existing scene dirs (e.g. ../shared/scenes/amil-101) '
+                    'instead of simulating --seeds (plugin path only)')
     ap.add_argument('--repo', default=os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
     args = ap.parse_args()
     seeds = parse_seeds(args.seeds)
     os.makedirs(args.work, exist_ok=True)
     det_cfg = os.path.join(args.repo, 'config', 'replay-chirp-amil.yaml')
     results = {'args': vars(args), 'solver': {}, 'plugin': {}}
-    scenes = []
-    for seed in seeds:
+    scenes = [os.path.abspath(x) for x in args.scenes.split(',') if x]
+    for seed in ([] if scenes else seeds):
         sc = os.path.join(args.work, f"{args.difficulty}-g{args.gestures}-s{seed}")
         if not os.path.exists(os.path.join(sc, 'truth.csv')):
             run([args.locus, 'simulate', 'amil', sc, '--seed', str(seed), '--difficulty', args.difficulty,
@@ -238,9 +240,10 @@ def main():
         methods = [m for m in args.plugin_method.split(',') if m] or [None]
         print(f"\n### Plugin end to end (locus replay -c {os.path.basename(args.plugin_config)} + locus eval --metric amil): "
               f"{args.difficulty}, {args.gestures} gesture(s), seeds {args.seeds}\n")
-        print("| method | seeds | listeners located | mean dir err (deg) | worst seed's mean dir err | median dist err "
-              "<= 2.5 m (%) (n) | mean pos err (m) | median pos err (m) | with position |")
-        print("|---|---|---|---|---|---|---|---|---|")
+        print("| method | scenes | listeners located | mean dir err (deg) | worst scene's mean dir err | median dist err "
+              "<= 2.5 m (%) (n) | within 2.5 m with distance | mean pos err (m) | median pos err (m) | with position "
+              "| std coverage 1σ / 2σ (pos) | dist 1σ / 2σ | dir 1σ / 2σ | flagged (mean dir err) | unflagged mean dir err |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
         for m in methods:
             cfg = args.plugin_config
             if m:
@@ -250,6 +253,8 @@ def main():
                 cfg = os.path.join(args.work, f"amil-{m}.yaml")
                 yaml.safe_dump(C, open(cfg, 'w'))
             summ, near, dirs, located, expected, pos = [], [], [], 0, 0, []
+            cov = {'pos': [], 'dist': [], 'dir': []}   # error / std per estimate
+            near_total, flagged_dirs, unflagged_dirs = 0, [], []
             for sc in scenes:
                 est = f"{sc}.{m or 'default'}.est.jsonl"
                 run([args.locus, 'replay', sc, '-c', cfg, '--speed', 'max', '-o', est])
@@ -259,7 +264,21 @@ def main():
                 summ.append(pl['summary'])
                 expected += pl['summary'].get('targets_expected') or 0
                 located += pl['summary'].get('targets_located') or 0
+                ests = {}
+                for line in open(est):
+                    e = json.loads(line)
+                    if e.get('type') == 'estimate': ests[e['target']] = e
                 for t in pl.get('targets', []):
+                    e = ests.get(t.get('target'), {})
+                    if (t.get('true_distance_m') or 99) <= 2.5: near_total += 1
+                    if t.get('direction_error_deg') is not None:
+                        ('inconsistent' in (e.get('flags') or []) and flagged_dirs or unflagged_dirs).append(t['direction_error_deg'])
+                    if e.get('std_m') and t.get('position_error_m') is not None:
+                        cov['pos'].append(t['position_error_m'] / e['std_m'])
+                    if e.get('distance_std_m') and t.get('distance_error_pct') is not None and t.get('true_distance_m'):
+                        cov['dist'].append(abs(t['distance_error_pct']) / 100 * t['true_distance_m'] / e['distance_std_m'])
+                    if e.get('direction_std_rad') and t.get('direction_error_deg') is not None:
+                        cov['dir'].append(math.radians(abs(t['direction_error_deg'])) / e['direction_std_rad'])
                     if t.get('direction_error_deg') is not None: dirs.append(t['direction_error_deg'])
                     if t.get('position_error_m') is not None: pos.append(t['position_error_m'])
                     if (t.get('true_distance_m') or 99) <= 2.5 and t.get('distance_error_pct') is not None:
@@ -271,9 +290,18 @@ def main():
                 'located_fraction': located / expected if expected else None, 'mean_direction_error_deg': mean(dirs),
                 'median_distance_error_pct_within_2_5m': med(near), 'listeners_within_2_5m_with_distance': len(near),
                 'mean_position_error_m': mean(pos), 'median_position_error_m': med(pos)}}
+            c12 = lambda v: (f"{sum(1 for x in v if x <= 1) / len(v) * 100:.0f} / {sum(1 for x in v if x <= 2) / len(v) * 100:.0f} % "
+                             f"({len(v)})") if v else "-"
+            results['plugin'][m or 'default']['pooled'].update({
+                'coverage': {k: [sum(1 for x in v if x <= 1) / len(v) if v else None,
+                                 sum(1 for x in v if x <= 2) / len(v) if v else None, len(v)] for k, v in cov.items()},
+                'flagged': len(flagged_dirs), 'flagged_mean_direction_error_deg': mean(flagged_dirs),
+                'unflagged_mean_direction_error_deg': mean(unflagged_dirs), 'listeners_within_2_5m': near_total})
             print(f"| {m or 'config'} | {len(summ)} | {located}/{expected} | {mean(dirs):.2f} | "
                   f"{max(g('mean_direction_error_deg') or [float('nan')]):.2f} | {med(near):.1f} ({len(near)}) | "
-                  f"{mean(pos):.3f} | {med(pos):.3f} | {len(pos)} |")
+                  f"{len(near)}/{near_total} | {mean(pos):.3f} | {med(pos):.3f} | {len(pos)} | {c12(cov['pos'])} | "
+                  f"{c12(cov['dist'])} | {c12(cov['dir'])} | {len(flagged_dirs)} ({mean(flagged_dirs):.1f}) | "
+                  f"{mean(unflagged_dirs):.2f} |")
     if args.json:
         json.dump(results, open(args.json, 'w'), indent=1, default=str)
 

@@ -117,6 +117,7 @@ struct DeviceConfig {
 struct OutputConfig {
   std::string path = "-";  ///< JSON lines destination, "-" = stdout (relative to the working dir)
   std::vector<EventType> events{EventType::Estimate, EventType::AudioDetection};
+  bool events_given = false;  ///< `output.events` was in the file (`locus replay` uses it then, else estimates)
 };
 
 struct Config {

@@ -84,6 +84,15 @@ struct Attitude {
 };
 
 /// A position estimate published by a localizer. Unknown fields are NaN.
+/// Flags of an Estimate (bit mask; docs/events.md "estimate" lists them by name).
+enum EstimateFlag : std::uint32_t {
+  kEstimateDirectionOnly = 1u << 0,   ///< the data give a direction, not a distance (position_m null)
+  kEstimateAmbiguous = 1u << 1,       ///< another position fits as well (the preferred one is reported)
+  kEstimateInconsistent = 1u << 2,    ///< the measurements disagree with the model beyond their noise
+                                      ///< (e.g. an obstructed path or a reflection taken for the first path):
+                                      ///< treat the result as unreliable; confidence is lowered accordingly
+};
+
 struct Estimate {
   NameTag plugin;                      ///< localizer instance name
   DeviceId reference;                  ///< device whose frame `position_m` is expressed in ("" = world)
@@ -96,6 +105,9 @@ struct Estimate {
   double distance_m = kNaN;            ///< range to the target, when meaningful
   double std_m = kNaN;                 ///< 1-sigma position uncertainty
   float confidence = 0.0f;             ///< 0..1
+  double direction_std_rad = kNaN;     ///< 1-sigma of direction_rad, when given
+  double distance_std_m = kNaN;        ///< 1-sigma of distance_m, when given
+  std::uint32_t flags = 0;             ///< EstimateFlag bits
 };
 
 /// Reverberation-decay features of one detected sound (SpyLoc's LoS/NLoS features T5..T30), emitted

@@ -417,7 +417,10 @@ class ConfigChecker {
       }
     }
     if (const Entry* ev = s->find("events")) {
-      if (auto events = event_list(*ev, "output.events")) config_.output.events = std::move(*events);
+      if (auto events = event_list(*ev, "output.events")) {
+        config_.output.events = std::move(*events);
+        config_.output.events_given = true;
+      }
     }
   }
 

@@ -97,6 +97,13 @@ struct ToJson {
     j["distance_m"] = num(e.distance_m);
     j["std_m"] = num(e.std_m);
     j["confidence"] = num(e.confidence);
+    j["direction_std_rad"] = num(e.direction_std_rad);
+    j["distance_std_m"] = num(e.distance_std_m);
+    nlohmann::ordered_json flags = nlohmann::ordered_json::array();
+    if (e.flags & kEstimateDirectionOnly) flags.push_back("direction_only");
+    if (e.flags & kEstimateAmbiguous) flags.push_back("ambiguous");
+    if (e.flags & kEstimateInconsistent) flags.push_back("inconsistent");
+    j["flags"] = flags;
   }
 };
 
