@@ -444,6 +444,7 @@ class AmilLocalizer final : public Localizer {
       }
       if (sol.status == amil::Status::Ambiguous) e.flags |= kEstimateAmbiguous;
       if (sol.inconsistent) e.flags |= kEstimateInconsistent;
+      if (sol.weak) e.flags |= kEstimateWeak;
       e.confidence = static_cast<float>(std::clamp(sol.confidence, 0.0, 1.0));
       out.publish(e);
       ++published_;

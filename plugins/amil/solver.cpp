@@ -23,6 +23,7 @@ namespace locus::amil {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
+constexpr double kReliableTimingFactor = 5.0;  // an arrival is reliable when its timing std <= this x the base
 
 double wrap_pi(double a) {
   a = std::fmod(a + kPi, 2.0 * kPi);
@@ -837,6 +838,16 @@ Solution solve(const std::vector<Beep>& beeps, const ListenerArrivals& arr, cons
     sol.rms_residual_s = std::sqrt(r.squaredNorm() / std::max(1, jr.used.n())) / c;
   }
   const double chi2 = f.cost;
+  // Reliable arrivals: timing error within kReliableTimingFactor x the base (not a doubtful carrier cycle).
+  {
+    const double tstd = std::isfinite(arr.timing_std_s) ? arr.timing_std_s : cfg.timing_std_s;
+    for (int k = 0; k < jr.used.n(); ++k) {
+      const auto i = static_cast<std::size_t>(jr.used.index[static_cast<std::size_t>(k)]);
+      const double sk = i < arr.arrival_std_s.size() && std::isfinite(arr.arrival_std_s[i]) ? arr.arrival_std_s[i] : tstd;
+      if (sk <= kReliableTimingFactor * tstd) ++sol.reliable_beeps;
+    }
+    sol.weak = sol.reliable_beeps < 4;  // fewer reliable equations than unknowns (x, y, skew, offset)
+  }
   sol.fit_position_m = f.x;
   sol.fit_covariance_m2 = P.allFinite() ? Eigen::Matrix2d(P.topLeftCorner<2, 2>()) : Eigen::Matrix2d::Constant(kNaN);
   sol.chi2 = chi2;
@@ -853,6 +864,7 @@ Solution solve(const std::vector<Beep>& beeps, const ListenerArrivals& arr, cons
     sol.note += "estimated skew " + std::to_string(sol.skew * 1e6) + " ppm beyond max_abs_skew: direction only";
     sol.position_m = Eigen::Vector2d(kNaN, kNaN);
     sol.confidence = 0.1;
+    sol.inconsistent = true;  // no clock does that: the arrivals do not follow the direct-path model
     return sol;
   }
   if (P2.allFinite()) fill_uncertainty(sol, P2);
@@ -1124,6 +1136,7 @@ double calibrate_session(std::vector<Solution>& listeners, const SolverConfig& c
     if (s.dof <= 0 || !std::isfinite(s.chi2) || !s.fit_covariance_m2.allFinite() || !s.fit_position_m.allFinite()) continue;
     if (s.status == Status::Failed) continue;
     if (std::isfinite(s.skew) && std::abs(s.skew) > cfg.max_abs_skew) continue;  // already direction-only for its skew
+    // Inconsistent: residuals far beyond the session's noise.
     s.inconsistent = s.chi2 > factor * chi2_q999(s.dof);
     const Eigen::Matrix2d P = s.fit_covariance_m2 * factor +
                               Eigen::Matrix2d::Identity() * (s.reference_offset_std_m * s.reference_offset_std_m);
@@ -1137,7 +1150,8 @@ double calibrate_session(std::vector<Solution>& listeners, const SolverConfig& c
     finish_position(s, cfg);
     const double geo = s.located() ? geometry_confidence(s.std_m / std::max(s.distance_m, 0.1))
                                    : 0.5 * geometry_confidence(s.direction_std_rad);
-    s.confidence = geo * (s.status == Status::Ambiguous ? 0.5 : 1.0) * (s.inconsistent ? 0.1 : 1.0);
+    s.confidence = geo * (s.status == Status::Ambiguous ? 0.5 : 1.0) * (s.inconsistent ? 0.1 : 1.0) * (s.weak ? 0.2 : 1.0);
+    if (s.weak) s.note += std::to_string(s.reliable_beeps) + " reliable arrivals (4 needed): weak; ";
     if (s.inconsistent) {
       s.note += "residuals " + std::to_string(std::sqrt(s.chi2 / std::max(1, s.dof) / factor)) +
                 " sigma beyond the session's noise: inconsistent; ";

@@ -136,7 +136,9 @@ struct Solution {
   Eigen::Matrix2d fit_covariance_m2 = Eigen::Matrix2d::Constant(kNaN);
   double chi2 = kNaN;
   int dof = 0;
-  bool inconsistent = false;               ///< residuals far beyond their noise (calibrate_session())
+  bool inconsistent = false;               ///< residuals far beyond their noise (calibrate_session()), impossible skew
+  int reliable_beeps = 0;                  ///< used arrivals whose timing std is near the base (no doubtful cycle)
+  bool weak = false;                       ///< reliable_beeps < 4: the answer may be a mirror or far off
   double reference_offset_std_m = 0.0;     ///< ListenerArrivals::reference_offset_std_m (calibrate_session())
   bool located() const { return status == Status::Located || status == Status::Ambiguous; }
 };

@@ -272,7 +272,7 @@ def main():
                     e = ests.get(t.get('target'), {})
                     if (t.get('true_distance_m') or 99) <= 2.5: near_total += 1
                     if t.get('direction_error_deg') is not None:
-                        ('inconsistent' in (e.get('flags') or []) and flagged_dirs or unflagged_dirs).append(t['direction_error_deg'])
+                        (flagged_dirs if {'inconsistent', 'weak'} & set(e.get('flags') or []) else unflagged_dirs).append(t['direction_error_deg'])
                     if e.get('std_m') and t.get('position_error_m') is not None:
                         cov['pos'].append(t['position_error_m'] / e['std_m'])
                     if e.get('distance_std_m') and t.get('distance_error_pct') is not None and t.get('true_distance_m'):

@@ -91,6 +91,8 @@ enum EstimateFlag : std::uint32_t {
   kEstimateInconsistent = 1u << 2,    ///< the measurements disagree with the model beyond their noise
                                       ///< (e.g. an obstructed path or a reflection taken for the first path):
                                       ///< treat the result as unreliable; confidence is lowered accordingly
+  kEstimateWeak = 1u << 3,            ///< too few reliable measurements to pin the answer down (it may be a
+                                      ///< mirror image or far off); confidence is lowered accordingly
 };
 
 struct Estimate {

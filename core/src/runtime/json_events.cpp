@@ -103,6 +103,7 @@ struct ToJson {
     if (e.flags & kEstimateDirectionOnly) flags.push_back("direction_only");
     if (e.flags & kEstimateAmbiguous) flags.push_back("ambiguous");
     if (e.flags & kEstimateInconsistent) flags.push_back("inconsistent");
+    if (e.flags & kEstimateWeak) flags.push_back("weak");
     j["flags"] = flags;
   }
 };
