@@ -18,17 +18,13 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "locus/angles.hpp"
+
 namespace locus::amil {
 
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-
-double wrap_pi(double a) {
-  a = std::fmod(a + kPi, 2.0 * kPi);
-  if (a < 0) a += 2.0 * kPi;
-  return a - kPi;
-}
 
 /// The heard beeps of one listener, in metres, relative to the first heard beep.
 struct Obs {
