@@ -6,18 +6,13 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 
+#include "locus/ids.hpp"
+
 namespace locus::amil {
 
 namespace {
 
 using json = nlohmann::ordered_json;
-
-bool valid_id(std::string_view id) {
-  if (id.empty() || id.size() > 31) return false;
-  return std::all_of(id.begin(), id.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
-  });
-}
 
 // Field readers: false with a reason when absent or of the wrong type.
 bool get_string(const json& j, const char* key, std::string& out, std::string& err) {

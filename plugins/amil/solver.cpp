@@ -18,18 +18,14 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "locus/angles.hpp"
+
 namespace locus::amil {
 
 namespace {
 
 constexpr double kPi = std::numbers::pi;
 constexpr double kReliableTimingFactor = 5.0;  // an arrival is reliable when its timing std <= this x the base
-
-double wrap_pi(double a) {
-  a = std::fmod(a + kPi, 2.0 * kPi);
-  if (a < 0) a += 2.0 * kPi;
-  return a - kPi;
-}
 
 /// The heard beeps of one listener, in metres, relative to the first heard beep.
 struct Obs {
@@ -431,6 +427,18 @@ struct PaperResult {
   int subsets_with_points = 0;
 };
 
+/// A direction vote of one 3-beep subset: a point (in range) or only a direction.
+struct Vote {
+  double dir;
+  bool point;
+  Eigen::Vector2d x;
+};
+
+/// The majority window: the window [θ, θ + win] (θ = a vote's direction) holding the most votes; ties
+/// go to the one with more points, then the tighter spread. Sets pr.direction, pr.kept and
+/// pr.direction_only. Sorts `votes` by direction.
+void majority_window(std::vector<Vote>& votes, double win, PaperResult& pr);
+
 PaperResult paper_solve(const Obs& o, double skew, const SolverConfig& cfg) {
   PaperResult pr;
   const int n = o.n();
@@ -440,11 +448,6 @@ PaperResult paper_solve(const Obs& o, double skew, const SolverConfig& cfg) {
     const auto ku = static_cast<std::size_t>(k);
     dd[ku] = o.c * ((o.a[ku] - o.a[0]) / (1.0 + skew) - (o.e[ku] - o.e[0]));
   }
-  struct Vote {
-    double dir;
-    bool point;
-    Eigen::Vector2d x;
-  };
   std::vector<Vote> votes;
   // per subset: its points (in range); two-solution subsets are resolved by the other subsets below
   std::vector<std::vector<Eigen::Vector2d>> subset_points;
@@ -505,9 +508,11 @@ PaperResult paper_solve(const Obs& o, double skew, const SolverConfig& cfg) {
   if (S == 1 && subset_points[0].size() == 2) pr.ambiguous = true;
   pr.votes = static_cast<int>(votes.size());
   if (votes.empty()) return pr;
-  // majority window: the window [θ, θ + w] (θ = a vote's direction) holding the most votes; ties go to
-  // the one with more points, then the tighter spread
-  const double win = cfg.direction_window_rad;
+  majority_window(votes, cfg.direction_window_rad, pr);
+  return pr;
+}
+
+void majority_window(std::vector<Vote>& votes, double win, PaperResult& pr) {
   std::sort(votes.begin(), votes.end(), [](const Vote& a, const Vote& b) { return a.dir < b.dir; });
   const std::size_t V = votes.size();
   auto ang = [&](std::size_t m) { return m < V ? votes[m].dir : votes[m - V].dir + 2.0 * kPi; };
@@ -552,11 +557,10 @@ PaperResult paper_solve(const Obs& o, double skew, const SolverConfig& cfg) {
   pr.direction = std::atan2(sy, sx);
   if (np == 0) {
     pr.direction_only = true;
-    return pr;
+    return;
   }
   centroid /= np;
   pr.direction = std::atan2(centroid.y(), centroid.x());
-  return pr;
 }
 
 
@@ -743,82 +747,67 @@ Bound cramer_rao(const std::vector<Eigen::Vector2d>& positions_m, const std::vec
   return bd;
 }
 
-Solution solve(const std::vector<Beep>& beeps, const ListenerArrivals& arr, const SolverConfig& cfg) {
-  validate(beeps, arr, cfg);
-  Solution sol;
-  sol.method = cfg.method;
-  sol.reference_offset_std_m = arr.reference_offset_std_m;
-  const double c = cfg.speed_of_sound_mps;
-  const double given_skew = std::isfinite(arr.known_skew) ? arr.known_skew : cfg.known_skew;
-  // ---- the heard beeps
-  const Obs o = make_obs(beeps, arr, cfg, true);
+namespace {
+
+/// solve() with Method::Paper or PaperJointSkew: the closed form of every 3-beep subset with the
+/// given skew (or the joint fit's), the direction majority and the candidates' centroid.
+Solution paper_solution(const Obs& o, Method method, double given_skew, const SolverConfig& cfg, Solution sol) {
   const int n = o.n();
-  sol.beeps_heard = n;
-  if (n < 3) {
-    sol.note = "only " + std::to_string(n) + " beeps heard (3 needed)";
+  const double c = cfg.speed_of_sound_mps;
+  double skew = given_skew;
+  if (method == Method::PaperJointSkew) {
+    const JointResult jr = joint_solve(o, cfg, true);
+    if (jr.fit.ok && std::abs(jr.fit.g / c) <= cfg.max_abs_skew) skew = jr.fit.g / c;
+    else sol.note += "joint skew unavailable, given skew used; ";
+  }
+  sol.skew = skew;
+  const PaperResult pr = paper_solve(o, skew, cfg);
+  sol.candidates = pr.kept;
+  if (pr.votes == 0) {
+    sol.note += "no 3-beep subset gives a point or a direction";
     return sol;
   }
-  Method method = cfg.method;
-  if ((method != Method::Paper) && n < 4) {
-    sol.note = "3 beeps heard: the skew cannot be estimated, paper method with the given skew; ";
-    method = Method::Paper;
-  }
-
-  auto finish_located = [&](Solution& s) { finish_position(s, cfg); };
-
-  if (method == Method::Paper || method == Method::PaperJointSkew) {
-    double skew = given_skew;
-    if (method == Method::PaperJointSkew) {
-      const JointResult jr = joint_solve(o, cfg, true);
-      if (jr.fit.ok && std::abs(jr.fit.g / c) <= cfg.max_abs_skew) skew = jr.fit.g / c;
-      else sol.note += "joint skew unavailable, given skew used; ";
-    }
-    sol.skew = skew;
-    const PaperResult pr = paper_solve(o, skew, cfg);
-    sol.candidates = pr.kept;
-    if (pr.votes == 0) {
-      sol.note += "no 3-beep subset gives a point or a direction";
-      return sol;
-    }
-    sol.direction_rad = pr.direction;
-    if (pr.direction_only) {
-      sol.status = Status::DirectionOnly;
-      sol.note += "no subset solution in the majority direction (triangle inequality broken or out of range): direction only";
-      sol.confidence = 0.2;
-      return sol;
-    }
-    Eigen::Vector2d centroid(0, 0);
-    for (const auto& x : pr.kept) centroid += x;
-    centroid /= static_cast<double>(pr.kept.size());
-    if (pr.ambiguous) centroid = pr.kept.front();  // a lone two-solution subset: one of the two, not their mean
-    sol.position_m = centroid;
-    sol.beeps_used = n;
-    // uncertainty: linearised at the centroid with the skew fixed, inflated by the candidates' spread
-    std::vector<double> w(static_cast<std::size_t>(n), 1.0);
-    // (the Jacobian does not depend on the offset b)
-    const Eigen::MatrixXd P = covariance(o, w, Eigen::Vector4d(centroid.x(), centroid.y(), 0.0, skew * c), false);
-    Eigen::Matrix2d P2 = P.allFinite() ? Eigen::Matrix2d(P.topLeftCorner<2, 2>()) : Eigen::Matrix2d::Zero();
-    if (pr.kept.size() >= 2 && !pr.ambiguous) {
-      Eigen::Matrix2d S = Eigen::Matrix2d::Zero();
-      for (const auto& x : pr.kept) S += (x - centroid) * (x - centroid).transpose();
-      S /= static_cast<double>(pr.kept.size() - 1);
-      if (S.trace() > P2.trace()) P2 = S;
-    }
-    fill_uncertainty(sol, P2);
-    if (pr.ambiguous) {
-      sol.status = Status::Ambiguous;
-      for (const auto& x : pr.all_points)
-        if ((x - centroid).norm() > 1e-9) sol.alternatives.push_back(x);
-      sol.note += "two solutions, nothing to choose by: both reported";
-    }
-    finish_located(sol);
-    sol.confidence = sol.located() ? geometry_confidence(sol.std_m / std::max(sol.distance_m, 0.1)) *
-                                         (sol.status == Status::Ambiguous ? 0.5 : 1.0)
-                                   : 0.2;
+  sol.direction_rad = pr.direction;
+  if (pr.direction_only) {
+    sol.status = Status::DirectionOnly;
+    sol.note += "no subset solution in the majority direction (triangle inequality broken or out of range): direction only";
+    sol.confidence = 0.2;
     return sol;
   }
+  Eigen::Vector2d centroid(0, 0);
+  for (const auto& x : pr.kept) centroid += x;
+  centroid /= static_cast<double>(pr.kept.size());
+  if (pr.ambiguous) centroid = pr.kept.front();  // a lone two-solution subset: one of the two, not their mean
+  sol.position_m = centroid;
+  sol.beeps_used = n;
+  // uncertainty: linearised at the centroid with the skew fixed, inflated by the candidates' spread
+  std::vector<double> w(static_cast<std::size_t>(n), 1.0);
+  // (the Jacobian does not depend on the offset b)
+  const Eigen::MatrixXd P = covariance(o, w, Eigen::Vector4d(centroid.x(), centroid.y(), 0.0, skew * c), false);
+  Eigen::Matrix2d P2 = P.allFinite() ? Eigen::Matrix2d(P.topLeftCorner<2, 2>()) : Eigen::Matrix2d::Zero();
+  if (pr.kept.size() >= 2 && !pr.ambiguous) {
+    Eigen::Matrix2d S = Eigen::Matrix2d::Zero();
+    for (const auto& x : pr.kept) S += (x - centroid) * (x - centroid).transpose();
+    S /= static_cast<double>(pr.kept.size() - 1);
+    if (S.trace() > P2.trace()) P2 = S;
+  }
+  fill_uncertainty(sol, P2);
+  if (pr.ambiguous) {
+    sol.status = Status::Ambiguous;
+    for (const auto& x : pr.all_points)
+      if ((x - centroid).norm() > 1e-9) sol.alternatives.push_back(x);
+    sol.note += "two solutions, nothing to choose by: both reported";
+  }
+  finish_position(sol, cfg);
+  sol.confidence = sol.located() ? geometry_confidence(sol.std_m / std::max(sol.distance_m, 0.1)) *
+                                       (sol.status == Status::Ambiguous ? 0.5 : 1.0)
+                                 : 0.2;
+  return sol;
+}
 
-  // ---- Joint / Robust (Network for a lone listener)
+/// solve() with Method::Joint, Robust (or Network for a lone listener): position and skew jointly.
+Solution joint_solution(const Obs& o, const ListenerArrivals& arr, Method method, const SolverConfig& cfg, Solution sol) {
+  const double c = cfg.speed_of_sound_mps;
   const bool robust = method == Method::Robust || method == Method::Network;
   const JointResult jr = joint_solve(o, cfg, robust);
   if (!jr.fit.ok) {
@@ -877,27 +866,58 @@ Solution solve(const std::vector<Beep>& beeps, const ListenerArrivals& arr, cons
     }
   }
   if (sol.status == Status::Ambiguous) sol.note += "another position fits as well: both reported; ";
-  finish_located(sol);
+  finish_position(sol, cfg);
   const double geo = sol.located() ? geometry_confidence(sol.std_m / std::max(sol.distance_m, 0.1))
                                    : 0.5 * geometry_confidence(sol.direction_std_rad);
   sol.confidence = geo * fit_confidence(chi2, dof) * (sol.status == Status::Ambiguous ? 0.5 : 1.0);
   return sol;
 }
 
+}  // namespace
 
-NetworkSolution solve_network(const std::vector<Beep>& beeps, const std::vector<ListenerArrivals>& arrivals,
-                              const SolverConfig& cfg_in) {
-  SolverConfig cfg = cfg_in;
-  cfg.method = Method::Robust;
-  NetworkSolution out;
-  out.beep_correction_m.assign(beeps.size(), Eigen::Vector2d::Zero());
-  // 1. every listener on its own (robust joint): the start, and the answer for those left out
-  struct Member {
-    std::size_t listener;
-    Obs o;
-    Eigen::Vector4d q;
-  };
-  std::vector<Member> members;
+Solution solve(const std::vector<Beep>& beeps, const ListenerArrivals& arr, const SolverConfig& cfg) {
+  validate(beeps, arr, cfg);
+  Solution sol;
+  sol.method = cfg.method;
+  sol.reference_offset_std_m = arr.reference_offset_std_m;
+  const double given_skew = std::isfinite(arr.known_skew) ? arr.known_skew : cfg.known_skew;
+  // ---- the heard beeps
+  const Obs o = make_obs(beeps, arr, cfg, true);
+  const int n = o.n();
+  sol.beeps_heard = n;
+  if (n < 3) {
+    sol.note = "only " + std::to_string(n) + " beeps heard (3 needed)";
+    return sol;
+  }
+  Method method = cfg.method;
+  if ((method != Method::Paper) && n < 4) {
+    sol.note = "3 beeps heard: the skew cannot be estimated, paper method with the given skew; ";
+    method = Method::Paper;
+  }
+
+  if (method == Method::Paper || method == Method::PaperJointSkew)
+    return paper_solution(o, method, given_skew, cfg, std::move(sol));
+  return joint_solution(o, arr, method, cfg, std::move(sol));
+}
+
+
+// ---------------------------------------------------------------------------------------- Network
+
+namespace {
+
+/// A listener taking part in the network solve: its timing-only observations (the robust pass's
+/// outliers removed) and its start q = (x, y, b, g).
+struct NetworkMember {
+  std::size_t listener;
+  Obs o;
+  Eigen::Vector4d q;
+};
+
+/// Step 1: every listener on its own (robust joint): the start, and the answer (out.listeners) for
+/// those left out. Returns the listeners with a usable joint fit.
+std::vector<NetworkMember> network_members(const std::vector<Beep>& beeps, const std::vector<ListenerArrivals>& arrivals,
+                                           const SolverConfig& cfg, NetworkSolution& out) {
+  std::vector<NetworkMember> members;
   for (std::size_t l = 0; l < arrivals.size(); ++l) {
     out.listeners.push_back(solve(beeps, arrivals[l], cfg));
     Obs o = make_obs(beeps, arrivals[l], cfg, true);
@@ -919,173 +939,186 @@ NetworkSolution solve_network(const std::vector<Beep>& beeps, const std::vector<
     varpro_cost(used, w1, x0, &b, &g);
     members.push_back({l, std::move(used), Eigen::Vector4d(x0.x(), x0.y(), b, g)});
   }
-  const std::size_t K = beeps.size();
-  std::size_t M = members.size();
-  out.listeners_in_network = static_cast<int>(M);
-  if (M < 3) {
-    out.note = "fewer than 3 listeners with a joint fit: per-listener solutions";
-    return out;
-  }
-  // A listener whose arrivals disagree with everyone's beep corrections (an obstructed listener whose
-  // first path is a reflection) would corrupt the shared corrections: after a pass, listeners whose
-  // RMS normalised residual is above max(5, 3 × the median) are left out (they keep their own
-  // solution) and the network is solved again without them.
-  Eigen::VectorXd theta;
+  return members;
+}
+
+/// The network problem of one pass: θ = (δ_0 .. δ_{K−1}, then (x, y, b, g) per member), the Huber
+/// weights w and the normal equations N θ = −grad of the last build().
+struct NetworkProblem {
+  NetworkProblem(const std::vector<NetworkMember>& members_in, const std::vector<double>& prior_sd_in, std::size_t beeps,
+                 double speed_of_sound_mps)
+      : members(members_in), prior_sd(prior_sd_in), K(beeps), c(speed_of_sound_mps) {}
+
+  const std::vector<NetworkMember>& members;
+  const std::vector<double>& prior_sd;  ///< prior 1-sigma of each beep correction (m, per axis)
+  std::size_t K = 0;                    ///< beeps
+  std::size_t M = 0;                    ///< members in this pass
+  std::size_t P = 0;                    ///< unknowns: 2K + 4M
+  double c = 0.0;
+  std::vector<std::vector<double>> w;
   Eigen::MatrixXd N;
   Eigen::VectorXd grad;
-  std::vector<std::vector<double>> w;
-  double cost = 0;
-  int it = 0;
-  std::size_t P = 0;
-  const double c = cfg.speed_of_sound_mps;
-  std::vector<double> prior_sd(K);
-  for (std::size_t k = 0; k < K; ++k)
-    prior_sd[k] = std::max(1e-5, std::isfinite(beeps[k].position_std_m) ? beeps[k].position_std_m : cfg.position_std_m);
-  for (int pass = 0; pass < 3; ++pass) {
+
+  /// Starts a pass over the current members: returns the start θ (zero corrections), unit weights.
+  Eigen::VectorXd start_pass() {
     M = members.size();
     P = 2 * K + 4 * M;
-    theta = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(P));
+    Eigen::VectorXd theta = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(P));
     for (std::size_t m = 0; m < M; ++m) theta.segment<4>(static_cast<Eigen::Index>(2 * K + 4 * m)) = members[m].q;
     w.assign(M, {});
     for (std::size_t m = 0; m < M; ++m) w[m].assign(static_cast<std::size_t>(members[m].o.n()), 1.0);
-    it = 0;
-    // 2. Gauss-Newton over all beep corrections δ_k (prior N(0, σ_p²) per axis) and every member's
-    //    (x, y, b, g); Huber IRLS on the timing residuals.
-    auto build = [&](const Eigen::VectorXd& th, bool with_matrix) {
-      if (with_matrix) {
-        N.setZero(static_cast<Eigen::Index>(P), static_cast<Eigen::Index>(P));
-        grad.setZero(static_cast<Eigen::Index>(P));
-      }
-      double cost = 0;
-      for (std::size_t k = 0; k < K; ++k)
-        for (int a = 0; a < 2; ++a) {
-          const auto i = static_cast<Eigen::Index>(2 * k + static_cast<std::size_t>(a));
-          const double W = 1.0 / (prior_sd[k] * prior_sd[k]);
-          cost += W * th[i] * th[i];
-          if (with_matrix) {
-            N(i, i) += W;
-            grad[i] += W * th[i];
-          }
-        }
-      for (std::size_t m = 0; m < M; ++m) {
-        const Obs& o = members[m].o;
-        const auto base = static_cast<Eigen::Index>(2 * K + 4 * m);
-        const Eigen::Vector2d x = th.segment<2>(base);
-        const double b = th[base + 2], g = th[base + 3];
-        for (int k = 0; k < o.n(); ++k) {
-          const auto ku = static_cast<std::size_t>(k);
-          const auto bk = static_cast<Eigen::Index>(2 * static_cast<std::size_t>(o.index[ku]));
-          const Eigen::Vector2d pk = o.p[ku] + th.segment<2>(bk);
-          const Eigen::Vector2d diff = x - pk;
-          const double d = std::max(diff.norm(), 1e-9);
-          const double r = o.cy[ku] - b - g * (o.de[ku] + d / c) - d;
-          const double W = w[m][ku] / (o.sigma[ku] * o.sigma[ku]);
-          cost += W * r * r;
-          if (!with_matrix) continue;
-          const double f = 1.0 + g / c;
-          const Eigen::Vector2d jx = -f * diff / d;  // ∂r/∂x; ∂r/∂δ_k = −∂r/∂x
-          const Eigen::Index idx[6] = {base, base + 1, base + 2, base + 3, bk, bk + 1};
-          const double jv[6] = {jx.x(), jx.y(), -1.0, -(o.de[ku] + d / c), -jx.x(), -jx.y()};
-          for (int i = 0; i < 6; ++i) {
-            grad[idx[i]] += W * r * jv[i];
-            for (int j = 0; j < 6; ++j) N(idx[i], idx[j]) += W * jv[i] * jv[j];
-          }
-        }
-      }
-      return cost;
-    };
-    cost = build(theta, true);
-    double lambda = 1e-4;
-    for (int outer = 0; outer < 4; ++outer) {
-      for (int inner = 0; inner < 20; ++inner, ++it) {
-        bool improved = false;
-        for (int tries = 0; tries < 8 && !improved; ++tries) {
-          Eigen::MatrixXd A = N;
-          for (Eigen::Index i = 0; i < A.rows(); ++i) A(i, i) += lambda * std::max(N(i, i), 1e-12);
-          const Eigen::VectorXd step = A.ldlt().solve(-grad);
-          if (!step.allFinite()) {
-            lambda *= 10;
-            continue;
-          }
-          const Eigen::VectorXd tn = theta + step;
-          const double cn = build(tn, false);
-          if (cn <= cost) {
-            const double drop = cost - cn;
-            theta = tn;
-            cost = build(theta, true);
-            lambda = std::max(lambda / 10, 1e-10);
-            improved = true;
-            if (drop < 1e-9 * std::max(cost, 1.0)) inner = 1000;
-          } else {
-            lambda *= 10;
-          }
-        }
-        if (!improved) break;
-      }
-      // Huber weights from the current residuals
-      bool changed = false;
-      for (std::size_t m = 0; m < M; ++m) {
-        const Obs& o = members[m].o;
-        const auto base = static_cast<Eigen::Index>(2 * K + 4 * m);
-        for (int k = 0; k < o.n(); ++k) {
-          const auto ku = static_cast<std::size_t>(k);
-          const auto bk = static_cast<Eigen::Index>(2 * static_cast<std::size_t>(o.index[ku]));
-          const double d = (theta.segment<2>(base) - o.p[ku] - theta.segment<2>(bk)).norm();
-          const double r = o.cy[ku] - theta[base + 2] - theta[base + 3] * (o.de[ku] + d / c) - d;
-          const double z = std::abs(r) / o.sigma[ku];
-          const double wn = z <= cfg.huber_k ? 1.0 : cfg.huber_k / z;
-          if (std::abs(wn - w[m][ku]) > 1e-3) changed = true;
-          w[m][ku] = wn;
-        }
-      }
-      if (!changed) break;
-      cost = build(theta, true);
+    return theta;
+  }
+
+  /// Timing residual (m) of heard beep ku of member m at θ.
+  double residual(const Eigen::VectorXd& theta, std::size_t m, std::size_t ku) const {
+    const Obs& o = members[m].o;
+    const auto base = static_cast<Eigen::Index>(2 * K + 4 * m);
+    const auto bk = static_cast<Eigen::Index>(2 * static_cast<std::size_t>(o.index[ku]));
+    const double d = (theta.segment<2>(base) - o.p[ku] - theta.segment<2>(bk)).norm();
+    return o.cy[ku] - theta[base + 2] - theta[base + 3] * (o.de[ku] + d / c) - d;
+  }
+
+  /// The weighted cost at th (priors + Huber-weighted timing residuals); with_matrix also builds N
+  /// and grad there.
+  double build(const Eigen::VectorXd& th, bool with_matrix) {
+    if (with_matrix) {
+      N.setZero(static_cast<Eigen::Index>(P), static_cast<Eigen::Index>(P));
+      grad.setZero(static_cast<Eigen::Index>(P));
     }
-    // gate: leave out listeners that disagree with the network
-    std::vector<double> rms(M);
+    double cost = 0;
+    for (std::size_t k = 0; k < K; ++k)
+      for (int a = 0; a < 2; ++a) {
+        const auto i = static_cast<Eigen::Index>(2 * k + static_cast<std::size_t>(a));
+        const double W = 1.0 / (prior_sd[k] * prior_sd[k]);
+        cost += W * th[i] * th[i];
+        if (with_matrix) {
+          N(i, i) += W;
+          grad[i] += W * th[i];
+        }
+      }
     for (std::size_t m = 0; m < M; ++m) {
       const Obs& o = members[m].o;
       const auto base = static_cast<Eigen::Index>(2 * K + 4 * m);
-      double ss = 0;
+      const Eigen::Vector2d x = th.segment<2>(base);
+      const double b = th[base + 2], g = th[base + 3];
       for (int k = 0; k < o.n(); ++k) {
         const auto ku = static_cast<std::size_t>(k);
         const auto bk = static_cast<Eigen::Index>(2 * static_cast<std::size_t>(o.index[ku]));
-        const double d = (theta.segment<2>(base) - o.p[ku] - theta.segment<2>(bk)).norm();
-        const double r = o.cy[ku] - theta[base + 2] - theta[base + 3] * (o.de[ku] + d / c) - d;
+        const Eigen::Vector2d pk = o.p[ku] + th.segment<2>(bk);
+        const Eigen::Vector2d diff = x - pk;
+        const double d = std::max(diff.norm(), 1e-9);
+        const double r = o.cy[ku] - b - g * (o.de[ku] + d / c) - d;
+        const double W = w[m][ku] / (o.sigma[ku] * o.sigma[ku]);
+        cost += W * r * r;
+        if (!with_matrix) continue;
+        const double f = 1.0 + g / c;
+        const Eigen::Vector2d jx = -f * diff / d;  // ∂r/∂x; ∂r/∂δ_k = −∂r/∂x
+        const Eigen::Index idx[6] = {base, base + 1, base + 2, base + 3, bk, bk + 1};
+        const double jv[6] = {jx.x(), jx.y(), -1.0, -(o.de[ku] + d / c), -jx.x(), -jx.y()};
+        for (int i = 0; i < 6; ++i) {
+          grad[idx[i]] += W * r * jv[i];
+          for (int j = 0; j < 6; ++j) N(idx[i], idx[j]) += W * jv[i] * jv[j];
+        }
+      }
+    }
+    return cost;
+  }
+
+  /// Huber weights from the residuals at θ; true when any weight moved by more than 1e-3.
+  bool reweight(const Eigen::VectorXd& theta, double huber_k) {
+    bool changed = false;
+    for (std::size_t m = 0; m < M; ++m) {
+      const Obs& o = members[m].o;
+      for (int k = 0; k < o.n(); ++k) {
+        const auto ku = static_cast<std::size_t>(k);
+        const double r = residual(theta, m, ku);
+        const double z = std::abs(r) / o.sigma[ku];
+        const double wn = z <= huber_k ? 1.0 : huber_k / z;
+        if (std::abs(wn - w[m][ku]) > 1e-3) changed = true;
+        w[m][ku] = wn;
+      }
+    }
+    return changed;
+  }
+
+  /// RMS normalised residual of every member at θ (the gate against inconsistent listeners).
+  std::vector<double> member_rms(const Eigen::VectorXd& theta) const {
+    std::vector<double> rms(M);
+    for (std::size_t m = 0; m < M; ++m) {
+      const Obs& o = members[m].o;
+      double ss = 0;
+      for (int k = 0; k < o.n(); ++k) {
+        const auto ku = static_cast<std::size_t>(k);
+        const double r = residual(theta, m, ku);
         ss += (r / o.sigma[ku]) * (r / o.sigma[ku]);
       }
       rms[m] = std::sqrt(ss / std::max(1, o.n()));
     }
-    std::vector<double> sorted = rms;
-    std::sort(sorted.begin(), sorted.end());
-    const double limit = std::max(5.0, 3.0 * sorted[sorted.size() / 2]);
-    std::vector<Member> kept;
-    std::vector<int> dropped;
-    for (std::size_t m = 0; m < M; ++m)
-      if (rms[m] <= limit) kept.push_back(members[m]);
-      else dropped.push_back(static_cast<int>(members[m].listener));
-    if (kept.size() == M || kept.size() < 3 || pass == 2) break;  // the last pass is always solved
-    out.excluded.insert(out.excluded.end(), dropped.begin(), dropped.end());
-    members = std::move(kept);
+    return rms;
   }
-  out.listeners_in_network = static_cast<int>(M);
-  out.iterations = it;
-  // 3. covariance (a-priori sigmas, inflated by the fit when it is worse than they say)
+};
+
+/// Step 2: Gauss-Newton (Levenberg-Marquardt damped) over all beep corrections δ_k (prior N(0, σ_p²)
+/// per axis) and every member's (x, y, b, g); Huber IRLS on the timing residuals. Updates theta and
+/// cost (pb.N, pb.grad hold the last normal equations); returns the iterations.
+int network_gauss_newton(NetworkProblem& pb, Eigen::VectorXd& theta, double& cost, double huber_k) {
+  int it = 0;
+  cost = pb.build(theta, true);
+  double lambda = 1e-4;
+  for (int outer = 0; outer < 4; ++outer) {
+    for (int inner = 0; inner < 20; ++inner, ++it) {
+      bool improved = false;
+      for (int tries = 0; tries < 8 && !improved; ++tries) {
+        Eigen::MatrixXd A = pb.N;
+        for (Eigen::Index i = 0; i < A.rows(); ++i) A(i, i) += lambda * std::max(pb.N(i, i), 1e-12);
+        const Eigen::VectorXd step = A.ldlt().solve(-pb.grad);
+        if (!step.allFinite()) {
+          lambda *= 10;
+          continue;
+        }
+        const Eigen::VectorXd tn = theta + step;
+        const double cn = pb.build(tn, false);
+        if (cn <= cost) {
+          const double drop = cost - cn;
+          theta = tn;
+          cost = pb.build(theta, true);
+          lambda = std::max(lambda / 10, 1e-10);
+          improved = true;
+          if (drop < 1e-9 * std::max(cost, 1.0)) inner = 1000;
+        } else {
+          lambda *= 10;
+        }
+      }
+      if (!improved) break;
+    }
+    if (!pb.reweight(theta, huber_k)) break;
+    cost = pb.build(theta, true);
+  }
+  return it;
+}
+
+/// Step 3: the members' solutions from θ, with the covariance of the a-priori sigmas, inflated by
+/// the fit when it is worse than they say.
+void network_solutions(const NetworkProblem& pb, const Eigen::VectorXd& theta, double cost, const SolverConfig& cfg,
+                       NetworkSolution& out) {
+  const std::size_t K = pb.K, M = pb.M, P = pb.P;
+  const double c = pb.c;
   int nres = 0;
-  for (const auto& mb : members) nres += mb.o.n();
+  for (const auto& mb : pb.members) nres += mb.o.n();
   const int dof = nres + static_cast<int>(2 * K) - static_cast<int>(P);
   const double inflate = dof > 0 ? std::max(1.0, cost / dof) : 1.0;
-  Eigen::LDLT<Eigen::MatrixXd> ldlt(N);
+  Eigen::LDLT<Eigen::MatrixXd> ldlt(pb.N);
   const Eigen::MatrixXd cov = ldlt.solve(Eigen::MatrixXd::Identity(static_cast<Eigen::Index>(P), static_cast<Eigen::Index>(P)));
   for (std::size_t k = 0; k < K; ++k) out.beep_correction_m[k] = theta.segment<2>(static_cast<Eigen::Index>(2 * k));
   for (std::size_t m = 0; m < M; ++m) {
     const auto base = static_cast<Eigen::Index>(2 * K + 4 * m);
-    Solution& s = out.listeners[members[m].listener];
+    Solution& s = out.listeners[pb.members[m].listener];
     const Solution before = s;
     s = Solution{};
     s.method = Method::Robust;
     s.beeps_heard = before.beeps_heard;
-    s.beeps_used = members[m].o.n();
+    s.beeps_used = pb.members[m].o.n();
     s.position_m = theta.segment<2>(base);
     s.skew = theta[base + 3] / c;
     s.skew_std = std::sqrt(std::max(0.0, cov(base + 3, base + 3) * inflate)) / c;
@@ -1101,6 +1134,54 @@ NetworkSolution solve_network(const std::vector<Beep>& beeps, const std::vector<
                                    : 0.5 * geometry_confidence(s.direction_std_rad);
     s.confidence = geo * fit_confidence(cost, dof) * (s.status == Status::Ambiguous ? 0.5 : 1.0);
   }
+}
+
+}  // namespace
+
+NetworkSolution solve_network(const std::vector<Beep>& beeps, const std::vector<ListenerArrivals>& arrivals,
+                              const SolverConfig& cfg_in) {
+  SolverConfig cfg = cfg_in;
+  cfg.method = Method::Robust;
+  NetworkSolution out;
+  out.beep_correction_m.assign(beeps.size(), Eigen::Vector2d::Zero());
+  std::vector<NetworkMember> members = network_members(beeps, arrivals, cfg, out);
+  const std::size_t K = beeps.size();
+  out.listeners_in_network = static_cast<int>(members.size());
+  if (members.size() < 3) {
+    out.note = "fewer than 3 listeners with a joint fit: per-listener solutions";
+    return out;
+  }
+  // A listener whose arrivals disagree with everyone's beep corrections (an obstructed listener whose
+  // first path is a reflection) would corrupt the shared corrections: after a pass, listeners whose
+  // RMS normalised residual is above max(5, 3 × the median) are left out (they keep their own
+  // solution) and the network is solved again without them.
+  std::vector<double> prior_sd(K);
+  for (std::size_t k = 0; k < K; ++k)
+    prior_sd[k] = std::max(1e-5, std::isfinite(beeps[k].position_std_m) ? beeps[k].position_std_m : cfg.position_std_m);
+  NetworkProblem pb(members, prior_sd, K, cfg.speed_of_sound_mps);
+  Eigen::VectorXd theta;
+  double cost = 0;
+  int it = 0;
+  for (int pass = 0; pass < 3; ++pass) {
+    theta = pb.start_pass();
+    it = network_gauss_newton(pb, theta, cost, cfg.huber_k);
+    // gate: leave out listeners that disagree with the network
+    const std::vector<double> rms = pb.member_rms(theta);
+    std::vector<double> sorted = rms;
+    std::sort(sorted.begin(), sorted.end());
+    const double limit = std::max(5.0, 3.0 * sorted[sorted.size() / 2]);
+    std::vector<NetworkMember> kept;
+    std::vector<int> dropped;
+    for (std::size_t m = 0; m < pb.M; ++m)
+      if (rms[m] <= limit) kept.push_back(members[m]);
+      else dropped.push_back(static_cast<int>(members[m].listener));
+    if (kept.size() == pb.M || kept.size() < 3 || pass == 2) break;  // the last pass is always solved
+    out.excluded.insert(out.excluded.end(), dropped.begin(), dropped.end());
+    members = std::move(kept);
+  }
+  out.listeners_in_network = static_cast<int>(pb.M);
+  out.iterations = it;
+  network_solutions(pb, theta, cost, cfg, out);
   return out;
 }
 

@@ -51,10 +51,4 @@ bool AttitudeTracker::update(const ImuSample& s) noexcept {
   return true;
 }
 
-double wrap_pi(double a) noexcept {
-  a = std::remainder(a, 2.0 * std::numbers::pi);
-  if (a <= -std::numbers::pi) a += 2.0 * std::numbers::pi;
-  return a;
-}
-
 }  // namespace locus::motion

@@ -47,7 +47,4 @@ class AttitudeTracker {
   std::uint64_t rejected_ = 0, gaps_ = 0;
 };
 
-/// Wraps an angle to (-pi, pi].
-double wrap_pi(double a) noexcept;
-
 }  // namespace locus::motion

@@ -11,6 +11,7 @@
 #include <numbers>
 #include <set>
 
+#include "locus/angles.hpp"
 #include "locus/eval/error.hpp"
 #include "locus/eval/frames.hpp"
 
@@ -39,12 +40,6 @@ double mean_of(const std::vector<double>& v) {
 double median_of(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   return percentile_sorted(v, 0.5);
-}
-
-double wrap_pi(double a) {
-  a = std::fmod(a + std::numbers::pi, 2 * std::numbers::pi);
-  if (a < 0) a += 2 * std::numbers::pi;
-  return a - std::numbers::pi;
 }
 
 double norm_dims(const Vec3& v, int dims) { return dims >= 3 ? v.norm() : v.head<2>().norm(); }

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "locus/eval/error.hpp"
+#include "locus/scene/pose.hpp"
 #include "locus/scene/scene.hpp"
 #include "locus/scene/streams.hpp"
 
@@ -51,20 +52,13 @@ bool TruthTrack::covers(double t) const {
 
 TruthPose TruthTrack::at(double t) const {
   if (samples_.empty()) throw std::logic_error("TruthTrack::at on an empty track");
-  TruthPose out;
-  if (t <= samples_.front().t_s) {
-    out = samples_.front();
-  } else if (t >= samples_.back().t_s) {
-    out = samples_.back();
-  } else {
-    auto it = std::upper_bound(samples_.begin(), samples_.end(), t,
-                               [](double v, const TruthPose& p) { return v < p.t_s; });
-    const TruthPose& b = *it;
-    const TruthPose& a = *(it - 1);
-    const double span = b.t_s - a.t_s;
-    const double u = span > 0 ? (t - a.t_s) / span : 0.0;
-    out.position_m = a.position_m + u * (b.position_m - a.position_m);
-    out.attitude = a.attitude.slerp(u, b.attitude);  // Eigen's slerp takes the shortest arc
+  const scene::TimeBracket at = scene::bracket(samples_.size(), t, [this](std::size_t i) { return samples_[i].t_s; });
+  TruthPose out = samples_[at.lo];
+  if (at.hi != at.lo) {
+    const TruthPose& a = samples_[at.lo];
+    const TruthPose& b = samples_[at.hi];
+    out.position_m = scene::interpolate_position(a.position_m, b.position_m, at.u);
+    out.attitude = scene::interpolate_attitude(a.attitude, b.attitude, at.u);
   }
   out.t_s = t;
   return out;

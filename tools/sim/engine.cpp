@@ -15,8 +15,9 @@
 #include <filesystem>
 #include <regex>
 #include <set>
-#include <sstream>
 #include <stdexcept>
+
+#include <yaml-cpp/yaml.h>
 
 #include "locus/dsp/iir.hpp"
 
@@ -631,6 +632,41 @@ std::vector<std::vector<float>> SceneSimulator::render_audio(const std::string& 
   return out;
 }
 
+namespace {
+
+/// The scene's `environment` mapping, in flow style: the room size, the family, the seed, the
+/// emission schedule file, then the family's own entries (Simulation::environment_yaml, the text of a
+/// flow mapping's entries). Built with yaml-cpp, so write_scene_yaml() reads back what is written.
+std::string environment_yaml(const Simulation& sim) {
+  YAML::Node env(YAML::NodeType::Map);
+  env.SetStyle(YAML::EmitterStyle::Flow);
+  if (sim.acoustics.room) {
+    const auto& r = *sim.acoustics.room;
+    YAML::Node size(YAML::NodeType::Sequence);
+    for (int i = 0; i < 3; ++i) size.push_back(fmt(r.size_m[i]));
+    env["room"] = size;
+  }
+  if (!sim.family.empty()) env["simulator_family"] = sim.family;
+  env["simulator_seed"] = std::to_string(sim.seed);
+  env["truth_emissions"] = "truth_emissions.csv";
+  if (!sim.environment_yaml.empty()) {
+    YAML::Node extra;
+    try {
+      extra = YAML::Load("{" + sim.environment_yaml + "}");
+    } catch (const YAML::Exception& e) {
+      throw std::invalid_argument("environment_yaml: not the entries of a YAML mapping (" + std::string(e.what()) +
+                                  "): " + sim.environment_yaml);
+    }
+    for (const auto& entry : extra) env[entry.first.Scalar()] = entry.second;
+  }
+  YAML::Emitter out;
+  out << env;
+  if (!out.good()) throw std::invalid_argument("environment_yaml: " + out.GetLastError());
+  return out.c_str();
+}
+
+}  // namespace
+
 WriteReport SceneSimulator::write(const std::string& out_dir) const {
   const auto t_begin = std::chrono::steady_clock::now();
   WriteReport rep;
@@ -645,31 +681,7 @@ WriteReport SceneSimulator::write(const std::string& out_dir) const {
   sc.name = sim_.name;
   sc.sample_rate_hz = fs_hz;
   sc.speed_of_sound_mps = sim_.acoustics.speed_of_sound_mps;
-  {
-    std::ostringstream env;
-    env << "{";
-    bool first = true;
-    auto sep = [&] { env << (first ? "" : ", "); first = false; };
-    if (sim_.acoustics.room) {
-      const auto& r = *sim_.acoustics.room;
-      sep();
-      env << "room: [" << fmt(r.size_m.x()) << ", " << fmt(r.size_m.y()) << ", " << fmt(r.size_m.z()) << "]";
-    }
-    if (!sim_.family.empty()) {
-      sep();
-      env << "simulator_family: " << sim_.family;
-    }
-    sep();
-    env << "simulator_seed: " << sim_.seed;
-    sep();
-    env << "truth_emissions: truth_emissions.csv";
-    if (!sim_.environment_yaml.empty()) {
-      sep();
-      env << sim_.environment_yaml;
-    }
-    env << "}";
-    sc.environment_yaml = env.str();
-  }
+  sc.environment_yaml = environment_yaml(sim_);
   scene::Truth truth;
   truth.trajectories = "truth.csv";
   if (sim_.magnetic_field_world_ut) truth.magnetic_field_world_ut = to_vec3(*sim_.magnetic_field_world_ut);

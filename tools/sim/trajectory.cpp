@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "locus/scene/pose.hpp"
+
 namespace locus::sim {
 
 Eigen::Vector3d Trajectory::velocity(double t) const {
@@ -61,7 +63,7 @@ Pose SampledTrajectory::pose(double t) const {
   const double u2 = u * u, u3 = u2 * u;
   Pose out;
   out.position_m = (2 * u3 - 3 * u2 + 1) * p0 + (u3 - 2 * u2 + u) * m0 + (-2 * u3 + 3 * u2) * p1 + (u3 - u2) * m1;
-  out.attitude = poses_[i].attitude.slerp(u, poses_[i + 1].attitude);
+  out.attitude = scene::interpolate_attitude(poses_[i].attitude, poses_[i + 1].attitude, u);
   return out;
 }
 

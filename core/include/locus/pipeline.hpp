@@ -57,6 +57,12 @@
 
 namespace locus {
 
+namespace pipeline_steps {  // the steps that build a Pipeline (core/src/runtime/pipeline_steps.hpp)
+struct Device;
+struct LocalizerInstance;
+struct HostServices;
+}  // namespace pipeline_steps
+
 /// Consumer side of one device's audio: reads spans from the ring, deinterleaves them into planar
 /// blocks and runs the detectors. All buffers are allocated in the constructor.
 class AudioBlockRunner {
@@ -199,7 +205,8 @@ class Pipeline {
  public:
   /// [main] Instantiates and configures every source, detector, localizer and sink of `config`.
   /// Template devices (id "*") are not instantiated. Throws std::runtime_error naming the component
-  /// that failed (including a detector whose inputs the device has no stream for).
+  /// that failed (including a detector whose inputs the device has no stream for). Built by the
+  /// steps of pipeline_steps.hpp: the link, the geometry, each device, the localizers, the outputs.
   Pipeline(const Config& config, Registry& registry, PipelineOptions options = {});
   ~Pipeline();
   Pipeline(const Pipeline&) = delete;
@@ -233,8 +240,10 @@ class Pipeline {
   std::uint64_t events_delivered(EventType type) const noexcept { return bus_.delivered(type); }
 
  private:
-  struct Device;
-  struct LocalizerInstance;
+  using Device = pipeline_steps::Device;
+  using LocalizerInstance = pipeline_steps::LocalizerInstance;
+  void open_localizers(const pipeline_steps::HostServices& host);
+  void open_outputs();
   void run_device(Device& device);
   void settle();
 
@@ -250,6 +259,7 @@ class Pipeline {
   std::unique_ptr<Clock> clock_;
   std::vector<std::unique_ptr<Device>> devices_;
   std::vector<std::unique_ptr<LocalizerInstance>> localizers_;
+  std::string served_device_;  // HostContext::device of the localizers (they may keep the view)
   std::unique_ptr<class JsonLinesWriter> writer_;
   std::vector<std::unique_ptr<EventOutput>> outputs_;  // config.outputs
   std::vector<std::unique_ptr<class SpdLogger>> output_logs_;

@@ -1,6 +1,7 @@
 // load_config: parse the node's YAML, load its plugin directories, validate every section against
 // the registry's schemas, and report every problem at once (docs/config.md is the reference).
 #include "locus/config.hpp"
+#include "locus/ids.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -54,8 +55,7 @@ namespace {
 using namespace config_detail;
 namespace fs = std::filesystem;
 
-constexpr std::size_t kMaxNameLength = NameTag::max_size();
-static_assert(DeviceId::max_size() == NameTag::max_size());
+constexpr std::size_t kMaxNameLength = kMaxIdLength;  // ids.hpp: the one rule for ids and names
 
 bool is_plain(const YAML::Node& n) { return n.Tag() == "?" || n.Tag().empty(); }
 
@@ -67,12 +67,6 @@ std::string got(const YAML::Node& n) {
   if (n.IsMap()) return "a mapping";
   if (n.IsSequence()) return "a list";
   return got_text(scalar_text(n));
-}
-
-bool valid_id(std::string_view s) {
-  return !s.empty() && s.size() <= kMaxNameLength && std::all_of(s.begin(), s.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
-  });
 }
 
 std::string id_expected() {

@@ -9,6 +9,7 @@
 #include "locus/inprocess_link.hpp"
 #include "locus/json_events.hpp"
 #include "locus/logging.hpp"
+#include "pipeline_steps.hpp"
 
 #include <spdlog/spdlog.h>
 
@@ -208,49 +209,8 @@ bool DeviceRunner::step(bool stop_requested) noexcept {
 
 // ------------------------------------------------------------------ Pipeline
 
-namespace {
-
-std::uint32_t plugin_inputs(const Registry& registry, const std::string& plugin) {
-  const locus_plugin_descriptor* d = registry.find_plugin(plugin);
-  return d != nullptr ? d->inputs : 0u;
-}
-
-}  // namespace
-
-struct Pipeline::Device {
-  std::string id;
-  const DeviceGeometry* geometry = nullptr;
-  std::unique_ptr<SpdLogger> source_log;
-  std::unique_ptr<AudioSource> source;
-  std::unique_ptr<AudioRing> ring;
-  std::unique_ptr<SpdLogger> sink_log;
-  std::unique_ptr<AudioSink> sink;              // `playback:` section
-  std::unique_ptr<PlaybackScheduler> scheduler;
-  std::unique_ptr<SchedulerEmitter> emitter;
-  struct Sensor {
-    SensorKind kind;
-    std::string name;
-    std::unique_ptr<SpdLogger> log;
-    std::unique_ptr<SensorSource> source;
-    std::unique_ptr<SensorQueue> queue;
-  };
-  std::vector<Sensor> sensors;
-  std::vector<std::unique_ptr<SpdLogger>> detector_logs;
-  std::vector<std::unique_ptr<Detector>> detectors;
-  RtEventQueue* queue = nullptr;
-  std::unique_ptr<AudioBlockRunner> runner;
-  std::unique_ptr<DeviceRunner> device_runner;
-  std::thread thread;
-  std::atomic<bool> stop_requested{false};
-  std::atomic<bool> done{false};
-  bool has_streams() const { return source != nullptr || !sensors.empty(); }
-};
-
-struct Pipeline::LocalizerInstance {
-  std::string name;
-  std::unique_ptr<SpdLogger> log;
-  std::unique_ptr<Localizer> localizer;
-};
+using pipeline_steps::Device;
+using pipeline_steps::HostServices;
 
 Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions options)
     : config_(config),
@@ -258,198 +218,38 @@ Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions opt
       options_(std::move(options)),
       fft_(std::make_unique<FftwPlanner>()),
       clock_(std::make_unique<SteadyClock>()) {
-  if (options_.link != nullptr) {
-    link_ = options_.link;
-  } else if (config_.link) {
-    const LinkDescriptor* d = registry_.find_link(config_.link->type);
-    if (d == nullptr) throw std::runtime_error("link: unknown type '" + config_.link->type + "'");
-    link_log_ = std::make_unique<SpdLogger>("link/" + config_.link->type);
-    try {
-      own_link_ = d->create(config_.link->params, *link_log_);
-    } catch (const std::exception& e) {
-      throw std::runtime_error("link '" + config_.link->type + "': " + e.what());
-    }
-    link_ = own_link_.get();
-  } else {
-    auto inprocess = std::make_unique<InProcessLink>();
-    own_inprocess_ = inprocess.get();
-    own_link_ = std::move(inprocess);
-    link_ = own_link_.get();
-  }
-  for (const DeviceConfig& dc : config_.devices) {
-    if (dc.is_template() || !dc.geometry || options_.geometry.count(dc.id) > 0) continue;
-    GeometrySpec spec;
-    const GeometryConfig& g = *dc.geometry;
-    spec.geometry.mic_count = static_cast<std::uint32_t>(std::min<std::size_t>(g.mics_m.size(), DeviceGeometry::kMaxMics));
-    for (std::uint32_t i = 0; i < spec.geometry.mic_count; ++i) spec.geometry.mics_m[i] = g.mics_m[i];
-    spec.geometry.has_speaker = g.speaker_m.has_value();
-    if (g.speaker_m) spec.geometry.speaker_m = *g.speaker_m;
-    spec.geometry.has_anchor = g.anchor_m.has_value();
-    if (g.anchor_m) spec.geometry.anchor_m = *g.anchor_m;
-    options_.geometry.emplace(dc.id, std::move(spec));
-  }
-  for (auto& [id, spec] : options_.geometry) {
-    spec.geometry.emits_json = spec.emits_json.c_str();
-    spec.geometry.scene_emits_json = spec.scene_emits_json.c_str();
-  }
-  const auto geometry_of = [this](const std::string& id) -> const DeviceGeometry* {
-    const auto it = options_.geometry.find(id);
-    return it == options_.geometry.end() ? nullptr : &it->second.geometry;
-  };
+  pipeline_steps::LinkChoice link = pipeline_steps::choose_link(config_, registry_, options_.link);
+  link_ = link.link;
+  own_link_ = std::move(link.owned);
+  own_inprocess_ = link.inprocess;
+  link_log_ = std::move(link.log);
+  pipeline_steps::add_config_geometry(config_, options_.geometry);
   dispatched_link_ = std::make_unique<DispatchedLink>(*link_, bus_);
   publisher_ = std::make_unique<BusPublisher>(bus_);
-
+  const HostServices host{*clock_, *fft_, *dispatched_link_};
   for (const DeviceConfig& dc : config_.devices) {
     if (dc.is_template()) continue;
-    auto dev = std::make_unique<Device>();
-    dev->id = dc.id;
-    dev->geometry = geometry_of(dc.id);
-    StreamInfo info;
-    info.device = DeviceId(dc.id);
-    info.channels = 0;
-    info.sample_rate_hz = config_.sample_rate_hz;
-    info.max_block_frames = dc.audio ? dc.audio->block_frames : 256;
-    if (dc.audio) {
-      const AudioConfig& ac = *dc.audio;
-      dev->source_log = std::make_unique<SpdLogger>(dc.id + "/" + ac.source);
-      HostContext ctx{*dev->source_log, *clock_, *fft_, *dispatched_link_, ac.source, dc.id, dev->geometry};
-      try {
-        dev->source = registry_.create_source(ac.source);
-        dev->source->open(ac.params, ctx);
-      } catch (const std::exception& e) {
-        throw std::runtime_error("device '" + dc.id + "': audio source '" + ac.source + "': " + e.what());
-      }
-      if (std::abs(dev->source->sample_rate_hz() - config_.sample_rate_hz) > 1e-6) {
-        throw std::runtime_error("device '" + dc.id + "': audio source '" + ac.source + "' runs at " +
-                                 std::to_string(dev->source->sample_rate_hz()) + " Hz but the node is configured for " +
-                                 std::to_string(config_.sample_rate_hz) + " Hz (sample_rate_hz)");
-      }
-      dev->ring = std::make_unique<AudioRing>(dev->source->channels(), ac.ring_frames);
-      info.channels = dev->source->channels();
-      info.sample_rate_hz = dev->source->sample_rate_hz();
-    }
-    if (dc.playback) {
-      const PlaybackConfig& pc = *dc.playback;
-      dev->sink_log = std::make_unique<SpdLogger>(dc.id + "/" + pc.sink + " (playback)");
-      HostContext ctx{*dev->sink_log, *clock_, *fft_, *dispatched_link_, pc.sink, dc.id, dev->geometry};
-      const SinkDescriptor* d = registry_.find_sink(pc.sink);
-      try {
-        if (d == nullptr) throw std::runtime_error("unknown playback sink");
-        dev->sink = d->create();
-        if (!dev->sink) throw std::runtime_error("the factory returned no instance");
-        dev->sink->open(pc.params, ctx);
-      } catch (const std::exception& e) {
-        throw std::runtime_error("device '" + dc.id + "': playback sink '" + pc.sink + "': " + e.what());
-      }
-      if (std::abs(dev->sink->sample_rate_hz() - config_.sample_rate_hz) > 1e-6) {
-        throw std::runtime_error("device '" + dc.id + "': playback sink '" + pc.sink + "' runs at " +
-                                 std::to_string(dev->sink->sample_rate_hz()) + " Hz but the node is configured for " +
-                                 std::to_string(config_.sample_rate_hz) + " Hz (sample_rate_hz)");
-      }
-      dev->scheduler = std::make_unique<PlaybackScheduler>(dev->sink->sample_rate_hz(), pc.max_pending);
-      dev->emitter = std::make_unique<SchedulerEmitter>(*dev->scheduler);
-    }
-    std::size_t sensor_capacity = 0;
-    for (const SensorKind kind : {SensorKind::Imu, SensorKind::Ble, SensorKind::Sync}) {
-      const std::optional<SensorConfig>& sc = dc.sensor(kind);
-      if (!sc) continue;
-      const std::string what = std::string(sensor_kind_name(kind)) + " source '" + sc->source + "'";
-      Device::Sensor s{kind, sc->source, std::make_unique<SpdLogger>(dc.id + "/" + sc->source), nullptr, nullptr};
-      HostContext ctx{*s.log, *clock_, *fft_, *dispatched_link_, sc->source, dc.id, dev->geometry};
-      try {
-        s.source = registry_.create_sensor_source(sc->source);
-        if (s.source->kind() != kind) {
-          throw std::runtime_error("produces " + std::string(sensor_kind_name(s.source->kind())) + " events");
-        }
-        s.source->open(sc->params, ctx);
-      } catch (const std::exception& e) {
-        throw std::runtime_error("device '" + dc.id + "': " + what + ": " + e.what());
-      }
-      s.queue = std::make_unique<SensorQueue>(sc->queue_capacity);
-      sensor_capacity += s.queue->capacity();
-      dev->sensors.push_back(std::move(s));
-    }
-    if (!dev->has_streams()) {
-      if (!dc.detectors.empty()) {
-        throw std::runtime_error("device '" + dc.id + "' has detectors but no stream (audio, imu, ble or sync)");
-      }
-      devices_.push_back(std::move(dev));
-      continue;
-    }
-    std::uint32_t available = 0;
-    if (dev->source) available |= kInputAudio;
-    for (const auto& s : dev->sensors) {
-      if (s.kind == SensorKind::Imu) available |= kInputImu;
-      if (s.kind == SensorKind::Ble) available |= kInputBle;
-    }
-    std::vector<Detector*> audio_detectors, imu_detectors, ble_detectors;
-    for (const ComponentConfig& cc : dc.detectors) {
-      const std::uint32_t inputs = plugin_inputs(registry_, cc.plugin);
-      if ((inputs & available) == 0) {
-        throw std::runtime_error("device '" + dc.id + "': detector '" + cc.name + "' consumes " +
-                                 ((inputs & kInputAudio) ? std::string("audio") : std::string()) +
-                                 ((inputs & kInputImu) ? std::string(" imu") : std::string()) +
-                                 ((inputs & kInputBle) ? std::string(" ble") : std::string()) +
-                                 " but the device has no such stream");
-      }
-      auto log = std::make_unique<SpdLogger>(cc.name);
-      HostContext dctx{*log, *clock_, *fft_, *dispatched_link_, cc.name, dc.id, dev->geometry, dev->emitter.get()};
-      try {
-        auto det = registry_.create_detector(cc.plugin);
-        det->configure(info, cc.params, dctx);
-        if ((inputs & kInputAudio) && dev->source) audio_detectors.push_back(det.get());
-        if ((inputs & kInputImu)) imu_detectors.push_back(det.get());
-        if ((inputs & kInputBle)) ble_detectors.push_back(det.get());
-        dev->detectors.push_back(std::move(det));
-      } catch (const std::exception& e) {
-        throw std::runtime_error("device '" + dc.id + "': detector '" + cc.name + "': " + e.what());
-      }
-      dev->detector_logs.push_back(std::move(log));
-    }
-    dev->queue = &bus_.make_rt_queue(dc.id, 4096 + 2 * sensor_capacity);
-    dev->device_runner = std::make_unique<DeviceRunner>(info.sample_rate_hz, *dev->queue, dev->queue);
-    if (dev->source) {
-      dev->runner = std::make_unique<AudioBlockRunner>(*dev->ring, dc.audio->block_frames, std::move(audio_detectors),
-                                                       *dev->queue);
-      dev->device_runner->set_audio(*dev->runner, *dev->ring, *dev->source, dc.audio->block_frames);
-    }
-    for (auto& s : dev->sensors) {
-      dev->device_runner->add_sensor(*s.queue, *s.source,
-                                     s.kind == SensorKind::Imu   ? imu_detectors
-                                     : s.kind == SensorKind::Ble ? ble_detectors
-                                                                 : std::vector<Detector*>{});
-    }
-    devices_.push_back(std::move(dev));
+    devices_.push_back(
+        pipeline_steps::build_device(dc, registry_, host, options_.geometry, config_.sample_rate_hz, bus_));
   }
+  open_localizers(host);
+  open_outputs();
+}
 
+void Pipeline::open_localizers(const HostServices& host) {
   // Localizers serve options_.localizer_device (replay: one node per device). A node-wide localizer
   // (locusd) on a node with exactly one device gets that device's geometry and emitter.
-  std::string served = options_.localizer_device;
-  if (served.empty()) {
-    std::vector<const DeviceConfig*> real;
-    for (const DeviceConfig& dc : config_.devices) {
-      if (!dc.is_template()) real.push_back(&dc);
-    }
-    if (real.size() == 1) served = real.front()->id;
-  }
-  const DeviceGeometry* node_geometry = geometry_of(served);
+  served_device_ = pipeline_steps::served_device(config_, options_.localizer_device);
+  const DeviceGeometry* node_geometry = pipeline_steps::find_geometry(options_.geometry, served_device_);
   Emitter* node_emitter = nullptr;
   for (const auto& dev : devices_) {
-    if (dev->id == served && dev->emitter) node_emitter = dev->emitter.get();
+    if (dev->id == served_device_ && dev->emitter) node_emitter = dev->emitter.get();
   }
   for (const ComponentConfig& cc : config_.localizers) {
-    auto inst = std::make_unique<LocalizerInstance>();
-    inst->name = cc.name;
-    inst->log = std::make_unique<SpdLogger>(options_.localizer_device.empty() ? cc.name
-                                                                              : options_.localizer_device + "/" + cc.name);
-    HostContext ctx{*inst->log, *clock_, *fft_, *dispatched_link_, cc.name, served, node_geometry,
-                    node_emitter};
-    try {
-      inst->localizer = registry_.create_localizer(cc.plugin);
-      inst->localizer->configure(cc.params, ctx);
-    } catch (const std::exception& e) {
-      throw std::runtime_error("localizer '" + cc.name + "': " + e.what());
-    }
+    const std::string log_name =
+        options_.localizer_device.empty() ? cc.name : options_.localizer_device + "/" + cc.name;
+    auto inst = pipeline_steps::open_localizer(cc, registry_, host, log_name, served_device_, node_geometry,
+                                               node_emitter);
     Localizer* loc = inst->localizer.get();
     Publisher* pub = publisher_.get();
     for (EventType t : loc->subscriptions()) {
@@ -457,7 +257,9 @@ Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions opt
     }
     localizers_.push_back(std::move(inst));
   }
+}
 
+void Pipeline::open_outputs() {
   if (options_.write_output) {
     writer_ = std::make_unique<JsonLinesWriter>(config_.output.path);
     for (EventType t : config_.output.events) {
@@ -466,15 +268,7 @@ Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions opt
     }
   }
   for (const EventOutputConfig& oc : config_.outputs) {
-    const OutputDescriptor* d = registry_.find_output(oc.type);
-    if (d == nullptr) throw std::runtime_error("output: unknown type '" + oc.type + "'");
-    output_logs_.push_back(std::make_unique<SpdLogger>("output/" + oc.type));
-    std::unique_ptr<EventOutput> out;
-    try {
-      out = d->create(oc.params, *output_logs_.back());
-    } catch (const std::exception& e) {
-      throw std::runtime_error("output '" + oc.type + "': " + e.what());
-    }
+    std::unique_ptr<EventOutput> out = pipeline_steps::open_output(oc, registry_, output_logs_);
     EventOutput* o = out.get();
     for (EventType t : oc.events) bus_.subscribe(t, [o](const Event& e) { o->write(e); });
     outputs_.push_back(std::move(out));

@@ -1,8 +1,8 @@
 // Registry::load_library / load_directory: external plugins as shared objects (see plugin.hpp).
 //
 // A library is all-or-nothing: it is dlopen()ed, every descriptor it enumerates is validated
-// (ABI version first, then the fields, then name clashes with what is already registered and
-// within the library), and only then are they added. A refused library is dlclose()d and leaves
+// (descriptor_fault(): the same rules as for built-ins, ABI version first; then name clashes with
+// what is already registered and within the library), and only then are they added. A refused library is dlclose()d and leaves
 // the registry as it was. An accepted library's handle stays open in `libraries_` until the
 // registry is destroyed (after every instance it created is gone).
 #include <dlfcn.h>
@@ -17,6 +17,8 @@
 #include <vector>
 
 #include "locus/registry.hpp"
+
+#include "descriptor_rules.hpp"
 
 namespace locus {
 
@@ -47,16 +49,22 @@ class LibraryHandle {
   void* handle_;
 };
 
-bool valid_plugin_name(std::string_view name) noexcept {
-  if (name.empty()) return false;
-  return std::all_of(name.begin(), name.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
-  });
-}
-
 std::string describe(const locus_plugin_descriptor& d, std::uint32_t index) {
   if (d.name != nullptr) return "descriptor '" + std::string(d.name) + "'";
   return "descriptor #" + std::to_string(index);
+}
+
+/// A broken descriptor rule, as a library's error says it (the ABI in the library's terms, since a
+/// rebuild is the fix; a null name by index).
+std::string fault_message(const locus_plugin_descriptor& d, std::uint32_t index, const DescriptorFault& fault) {
+  switch (fault.rule) {
+    case DescriptorRule::AbiVersion:
+      return "descriptor #" + std::to_string(index) + " was built for Locus plugin ABI " +
+             std::to_string(d.abi_version) + ", this host speaks ABI " + std::to_string(LOCUS_PLUGIN_ABI_VERSION) +
+             "; rebuild the plugin against this Locus (find_package(Locus))";
+    case DescriptorRule::NameNotNull: return "descriptor #" + std::to_string(index) + " has a null name";
+    default: return describe(d, index) + ": " + fault.reason;
+  }
 }
 
 /// dlerror() text without a leading "<path>: " (the message already names the file).
@@ -111,46 +119,9 @@ std::vector<std::string> Registry::load_library(const std::string& path) {
     }
     if (d == nullptr) break;
 
-    // abi_version is the only field whose position every ABI shares: check it before reading others.
-    if (d->abi_version != LOCUS_PLUGIN_ABI_VERSION) {
-      throw error("descriptor #" + std::to_string(index) + " was built for Locus plugin ABI " +
-                  std::to_string(d->abi_version) + ", this host speaks ABI " +
-                  std::to_string(LOCUS_PLUGIN_ABI_VERSION) +
-                  "; rebuild the plugin against this Locus (find_package(Locus))");
-    }
+    // The descriptor rules (descriptor_rules.hpp), worded for a library: by index until the name is known.
+    if (const auto fault = descriptor_fault(d)) throw error(fault_message(*d, index, *fault));
     const std::string what = describe(*d, index);
-    if (d->name == nullptr) throw error(what + " has a null name");
-    if (!valid_plugin_name(d->name)) {
-      throw error(what + " has an invalid name (a plugin name is [a-z0-9_]+)");
-    }
-    if (d->version == nullptr) throw error(what + " has a null version");
-    if (d->description == nullptr) throw error(what + " has a null description");
-    if (d->schema == nullptr) throw error(what + " has a null schema function");
-    switch (d->kind) {
-      case LOCUS_PLUGIN_DETECTOR:
-        if (d->create_detector == nullptr) throw error(what + " is a detector with a null create_detector");
-        if (d->create_localizer != nullptr) throw error(what + " is a detector but also sets create_localizer");
-        if (d->inputs == 0) throw error(what + " is a detector that declares no inputs");
-        if ((d->inputs & ~std::uint32_t{kInputAudio | kInputImu | kInputBle}) != 0) {
-          throw error(what + " declares unknown input bits " + std::to_string(d->inputs));
-        }
-        break;
-      case LOCUS_PLUGIN_LOCALIZER:
-        if (d->create_localizer == nullptr) throw error(what + " is a localizer with a null create_localizer");
-        if (d->create_detector != nullptr) throw error(what + " is a localizer but also sets create_detector");
-        break;
-      default:
-        throw error(what + " has an unknown kind " + std::to_string(d->kind) +
-                    " (1 = detector, 2 = localizer)");
-    }
-    try {
-      if (d->schema() == nullptr) throw error(what + ": schema() returned nullptr");
-    } catch (const PluginLoadError&) {
-      throw;
-    } catch (...) {
-      throw error(what + ": schema() threw an exception");
-    }
-
     const std::string_view name(d->name);
     for (const locus_plugin_descriptor* earlier : descriptors) {
       if (name == earlier->name) throw error(what + " is enumerated twice by this library");
@@ -160,14 +131,6 @@ std::vector<std::string> Registry::load_library(const std::string& path) {
         throw error("plugin name '" + std::string(name) + "' is already registered (" +
                     (entry.origin == "built-in" ? std::string("built-in") : "loaded from " + entry.origin) + ")");
       }
-    }
-    // Whatever else add_plugin() insists on (the same rules as for built-ins).
-    try {
-      check_plugin(d, path);
-    } catch (const std::exception& e) {
-      const std::string reason = e.what();
-      if (reason.find(path) != std::string::npos) throw PluginLoadError(reason);
-      throw error(reason);
     }
     descriptors.push_back(d);
   }

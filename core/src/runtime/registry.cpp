@@ -1,6 +1,8 @@
 // Registry: plugin descriptors and audio sources by name (the in-memory part; dlopen lives in
-// plugin_loader.cpp).
+// plugin_loader.cpp, the rules a descriptor must meet in descriptor_rules.cpp).
 #include "locus/registry.hpp"
+
+#include "descriptor_rules.hpp"
 
 #include <dlfcn.h>
 
@@ -16,74 +18,12 @@ namespace locus {
 
 namespace {
 
-/// Instance names default to the plugin name and are carried in NameTag (31 characters).
-constexpr std::size_t kMaxPluginNameLength = 31;
-
-bool valid_plugin_name(std::string_view name) noexcept {
-  return !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
-  });
-}
-
 std::string_view kind_name(std::uint32_t kind) noexcept {
   switch (kind) {
     case LOCUS_PLUGIN_DETECTOR: return "detector";
     case LOCUS_PLUGIN_LOCALIZER: return "localizer";
     default: return "plugin of unknown kind";
   }
-}
-
-bool default_matches(const ParamSpec& spec) {
-  const ParamValue& v = spec.default_value;
-  switch (spec.type) {
-    case ParamType::Bool: return std::holds_alternative<bool>(v);
-    case ParamType::Int: return std::holds_alternative<std::int64_t>(v);
-    case ParamType::Float: return std::holds_alternative<double>(v) || std::holds_alternative<std::int64_t>(v);
-    case ParamType::String:
-    case ParamType::Enum: return std::holds_alternative<std::string>(v);
-    case ParamType::FloatList: return std::holds_alternative<std::vector<double>>(v);
-  }
-  return false;
-}
-
-bool in_range(const ParamSpec& spec, double x) {
-  if (std::isnan(x)) return true;  // NaN defaults mean "automatic" for some plugins
-  return !(spec.min && x < *spec.min) && !(spec.max && x > *spec.max);
-}
-
-/// Problems of a schema a plugin declares, or "" when it is sound.
-std::string schema_problem(const ParamSchema& schema) {
-  for (std::size_t i = 0; i < schema.size(); ++i) {
-    const ParamSpec& spec = schema[i];
-    if (spec.key.empty()) return "parameter #" + std::to_string(i) + " has an empty key";
-    const std::string where = "parameter '" + spec.key + "'";
-    for (std::size_t j = 0; j < i; ++j) {
-      if (schema[j].key == spec.key) return where + " is declared twice";
-    }
-    if (spec.min && spec.max && *spec.min > *spec.max) return where + " has min > max";
-    if (spec.type == ParamType::Enum && spec.choices.empty()) return where + " is an enum without choices";
-    if (spec.min_items && spec.max_items && *spec.min_items > *spec.max_items) {
-      return where + " has min_items > max_items";
-    }
-    if (spec.required()) continue;
-    if (!default_matches(spec)) {
-      return where + " has a default that does not match its type (" + std::string(param_type_name(spec.type)) + ")";
-    }
-    bool ok = true;
-    if (const auto* d = std::get_if<double>(&spec.default_value)) ok = in_range(spec, *d);
-    if (const auto* n = std::get_if<std::int64_t>(&spec.default_value)) ok = in_range(spec, static_cast<double>(*n));
-    if (const auto* l = std::get_if<std::vector<double>>(&spec.default_value)) {
-      ok = std::all_of(l->begin(), l->end(), [&](double x) { return in_range(spec, x); });
-    }
-    if (!ok) return where + " has a default outside [min, max]";
-    if (spec.type == ParamType::Enum) {
-      const auto& s = std::get<std::string>(spec.default_value);
-      if (std::find(spec.choices.begin(), spec.choices.end(), s) == spec.choices.end()) {
-        return where + " has a default '" + s + "' that is not one of its choices";
-      }
-    }
-  }
-  return {};
 }
 
 }  // namespace
@@ -107,36 +47,9 @@ void Registry::check_plugin(const locus_plugin_descriptor* d, const std::string&
     }
     return PluginLoadError(who + " (" + origin + "): " + reason);
   };
-  if (d == nullptr) throw fail("null descriptor");
-  if (d->abi_version != LOCUS_PLUGIN_ABI_VERSION) {
-    throw fail("built for plugin ABI version " + std::to_string(d->abi_version) + ", this host uses version " +
-               std::to_string(LOCUS_PLUGIN_ABI_VERSION) + "; rebuild the plugin against this Locus");
-  }
-  if (d->name == nullptr) throw fail("the descriptor has no name");
+  // The descriptor's own rules (descriptor_rules.hpp), then the registry's: a name used once.
+  if (const auto fault = descriptor_fault(d)) throw fail(fault->reason);
   const std::string_view name(d->name);
-  if (!valid_plugin_name(name)) throw fail("invalid name (a plugin name is [a-z0-9_]+)");
-  if (name.size() > kMaxPluginNameLength) {
-    throw fail("name longer than " + std::to_string(kMaxPluginNameLength) + " characters");
-  }
-  switch (d->kind) {
-    case LOCUS_PLUGIN_DETECTOR:
-      if (d->create_detector == nullptr) throw fail("a detector without a create_detector factory");
-      break;
-    case LOCUS_PLUGIN_LOCALIZER:
-      if (d->create_localizer == nullptr) throw fail("a localizer without a create_localizer factory");
-      break;
-    default:
-      throw fail("unknown kind " + std::to_string(d->kind) + " (1 = detector, 2 = localizer)");
-  }
-  if (d->schema == nullptr) throw fail("no schema function");
-  const ParamSchema* schema = nullptr;
-  try {
-    schema = d->schema();
-  } catch (...) {
-    throw fail("schema() threw an exception");
-  }
-  if (schema == nullptr) throw fail("schema() returned nullptr");
-  if (const std::string problem = schema_problem(*schema); !problem.empty()) throw fail("bad schema: " + problem);
   for (const PluginEntry& e : plugins_) {
     if (e.descriptor->name == name) throw fail("the name is already registered (" + e.origin + ")");
   }

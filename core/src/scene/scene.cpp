@@ -13,6 +13,7 @@
 #include <set>
 #include <sstream>
 
+#include "locus/ids.hpp"
 #include "locus/scene/scene.hpp"
 #include "locus/scene/streams.hpp"
 
@@ -110,14 +111,6 @@ class Checker {
  private:
   std::string file_;
 };
-
-bool valid_id(const std::string& s) {
-  if (s.empty()) return false;
-  for (char c : s)
-    if (!((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-'))
-      return false;
-  return true;
-}
 
 dsp::SignalSpec parse_signal(Checker& ck, const YAML::Node& e, const std::string& where) {
   dsp::SignalSpec s;
@@ -439,10 +432,11 @@ Scene load_scene(const std::string& dir) {
     if (!n.IsDefined()) return;
     auto s = ck.string(n, where + ".id");
     if (!s) return;
-    if (!valid_id(*s)) {
+    const IdProblem problem = id_problem(*s);
+    if (problem == IdProblem::Empty || problem == IdProblem::BadCharacter) {
       ck.issue(n, where + ".id", "invalid id '" + *s + "' (expected letters, digits, '_' or '-' only)");
-    } else if (s->size() > DeviceId::max_size()) {
-      ck.issue(n, where + ".id", "id '" + *s + "' is longer than " + std::to_string(DeviceId::max_size()) + " characters");
+    } else if (problem == IdProblem::TooLong) {
+      ck.issue(n, where + ".id", "id '" + *s + "' is longer than " + std::to_string(kMaxIdLength) + " characters");
     } else if (auto it = seen_ids.find(*s); it != seen_ids.end()) {
       ck.issue(n, where + ".id", "duplicate id '" + *s + "' (first declared at " + it->second + ")");
     } else {

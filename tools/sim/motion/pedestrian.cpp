@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "locus/angles.hpp"
 #include "locus/sim/rng.hpp"
 
 namespace locus::sim::motion {
@@ -14,12 +15,6 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
-
-double wrap_pi(double a) {
-  while (a > kPi) a -= kTwoPi;
-  while (a <= -kPi) a += kTwoPi;
-  return a;
-}
 
 // Quintic smoothstep: 0 → 1 on [0, 1] with zero first and second derivatives at both ends.
 double smooth5(double u) {
