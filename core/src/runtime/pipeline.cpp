@@ -289,8 +289,8 @@ Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions opt
     options_.geometry.emplace(dc.id, std::move(spec));
   }
   for (auto& [id, spec] : options_.geometry) {
-    spec.geometry.emits_json = spec.emits_json.c_str();
-    spec.geometry.scene_emits_json = spec.scene_emits_json.c_str();
+    spec.geometry.emits = spec.emits;
+    spec.geometry.scene_emits = spec.scene_emits;
   }
   const auto geometry_of = [this](const std::string& id) -> const DeviceGeometry* {
     const auto it = options_.geometry.find(id);

@@ -23,6 +23,7 @@
 
 #include "locus/events.hpp"
 #include "locus/scene/scene.hpp"
+#include "locus/signal.hpp"
 
 namespace locus::scene {
 
@@ -195,10 +196,10 @@ class CsvReader {
 std::string format_double(double v);
 /// Formats a float in the shortest form that parses back to the same float.
 std::string format_float(float v);
-/// Parses "AA:BB:CC:DD:EE:FF" (hex, either case). False when malformed.
-bool parse_ble_address(std::string_view s, std::array<std::uint8_t, 6>& out) noexcept;
-/// "AA:BB:CC:DD:EE:FF" (upper case).
-std::string format_ble_address(const std::array<std::uint8_t, 6>& a);
+/// BLE addresses "AA:BB:CC:DD:EE:FF": one parser and formatter, with the signal description
+/// (locus/signal.hpp), where a ble signal's address is checked.
+using locus::format_ble_address;
+using locus::parse_ble_address;
 
 /// imu.csv: t, ax, ay, az, gx, gy, gz required; mx, my, mz optional (all three or none; a row with
 /// all three cells empty has has_mag = false). Rows must be in non-decreasing t.
