@@ -8,7 +8,6 @@
 #include <fstream>
 #include <map>
 #include <memory>
-#include <nlohmann/json.hpp>
 #include <set>
 #include <string>
 #include <vector>
@@ -25,8 +24,6 @@ using amil::GestureTracker;
 using amil::Session;
 
 enum class Role { Player, Listener };
-
-bool acoustic_type(const std::string& t) { return t == "lfm" || t == "multitone" || t == "gold"; }
 
 std::string fmt(const char* f, double v) {
   char buf[64];
@@ -54,36 +51,28 @@ class AmilLocalizer final : public Localizer {
 
     // The beep: the device's own `emits` entry when the scene declares one, else the beep_* params.
     beep_duration_s_ = params.get_float("beep_duration_s");
-    nlohmann::ordered_json sig{{"type", "lfm"},
-                               {"f0", params.get_float("beep_f0_hz")},
-                               {"f1", params.get_float("beep_f1_hz")},
-                               {"duration", beep_duration_s_},
-                               {"fade", params.get_float("beep_fade_s")},
-                               {"amplitude", 1.0}};
+    beep_.type = "lfm";
+    beep_.f0_hz = params.get_float("beep_f0_hz");
+    beep_.f1_hz = params.get_float("beep_f1_hz");
+    beep_.duration_s = beep_duration_s_;
+    beep_.fade_s = params.get_float("beep_fade_s");
+    beep_.amplitude = 1.0;
     bool emits_acoustic = false;
-    if (ctx.geometry != nullptr && ctx.geometry->emits_json != nullptr) {
-      nlohmann::json emits;
-      try {
-        emits = nlohmann::json::parse(ctx.geometry->emits_json);
-      } catch (const nlohmann::json::exception& e) {
-        throw std::runtime_error(std::string("amil: the device geometry's emits_json is not JSON: ") + e.what());
-      }
-      if (emits.is_array()) {
-        for (const auto& entry : emits) {
-          if (!entry.is_object() || !entry.contains("type") || !entry["type"].is_string()) continue;
-          if (!acoustic_type(entry["type"].get<std::string>())) continue;
-          emits_acoustic = true;
-          sig = nlohmann::ordered_json::parse(entry.dump());
-          if (entry.contains("duration") && entry["duration"].is_number()) beep_duration_s_ = entry["duration"].get<double>();
-          break;
+    if (ctx.geometry != nullptr) {
+      for (std::size_t i = 0; i < ctx.geometry->emits.size() && !emits_acoustic; ++i) {
+        const SignalSpec& entry = ctx.geometry->emits[i];
+        if (!entry.acoustic()) continue;
+        if (const auto issues = check_signal(entry, "emits[" + std::to_string(i) + "]"); !issues.empty()) {
+          throw std::runtime_error("amil: the device's " + issues.front().field + ": " + issues.front().message);
         }
+        emits_acoustic = true;
+        beep_ = entry;
+        if (entry.duration_s > 0.0) beep_duration_s_ = entry.duration_s;  // lfm, multitone (a Gold code has none)
       }
     }
-    signal_json_ = sig.dump();
     // One carrier cycle of the beep: the timing error of an arrival whose cycle the detector is unsure of.
-    if (sig.contains("f0") && sig.contains("f1") && sig["f0"].is_number() && sig["f1"].is_number() &&
-        sig["f0"].get<double>() + sig["f1"].get<double>() > 0.0)
-      carrier_period_s_ = 2.0 / (sig["f0"].get<double>() + sig["f1"].get<double>());
+    if (beep_.type == "lfm" && beep_.f0_hz + beep_.f1_hz > 0.0) carrier_period_s_ = 2.0 / (beep_.f0_hz + beep_.f1_hz);
+    else if (beep_.type == "gold" && beep_.carrier_hz > 0.0) carrier_period_s_ = 1.0 / beep_.carrier_hz;
     // The listening mic's horizontal offset from the device origin (what a listener's position means).
     if (ctx.geometry != nullptr && channel_ < ctx.geometry->mic_count)
       mic_offset_m_ = std::hypot(ctx.geometry->mics_m[channel_][0], ctx.geometry->mics_m[channel_][1]);
@@ -146,7 +135,7 @@ class AmilLocalizer final : public Localizer {
     if (role_ == Role::Player) {
       link_->subscribe(amil::topic_filter(prefix_), [this](const LinkMessage& m) { on_link(m); });
       log_->info("amil: player" + (device_.empty() ? std::string(" (device from the first event)") : " " + device_) +
-                 "; estimates " + (gesture_mode_ ? "after each gesture" : "at the end") + "; beep " + signal_json_);
+                 "; estimates " + (gesture_mode_ ? "after each gesture" : "at the end") + "; beep " + signal_to_json(beep_));
     } else {
       if (!device_.empty()) link_->publish(amil::topic_hello(prefix_, device_), amil::encode(amil::HelloMessage{device_, channel_, mic_offset_m_}));
       log_->debug("amil: listener " + device_);
@@ -263,7 +252,7 @@ class AmilLocalizer final : public Localizer {
     const double fs = emitter_->sample_rate_hz();
     const std::uint64_t start = emitter_->playback_frame() + static_cast<std::uint64_t>(std::llround(beep_delay_s_ * fs));
     std::string err;
-    if (emitter_->schedule(signal_json_, start, beep_gain_, &err)) {
+    if (emitter_->schedule(beep_, start, beep_gain_, &err)) {
       ++beeps_scheduled_;
       log_->debug(std::string("amil: beep scheduled (") + why + ") at playback frame " + std::to_string(start));
     } else {
@@ -483,7 +472,8 @@ class AmilLocalizer final : public Localizer {
   Link* link_ = nullptr;
   const Clock* clock_ = nullptr;
   Emitter* emitter_ = nullptr;
-  std::string instance_, device_, prefix_, detector_, player_id_, signal_json_, track_csv_;
+  std::string instance_, device_, prefix_, detector_, player_id_, track_csv_;
+  SignalSpec beep_;  // what a beep plays: the device's first acoustic `emits` entry, else the beep_* params
   bool position_std_auto_ = true;
   std::uint32_t channel_ = 0;
   int template_index_ = -1;

@@ -6,7 +6,7 @@
 // One instance runs on every node (locus replay: one node per scene device, HostContext::device = that
 // device). Its role:
 //   - `role: player|listener` as configured; `auto` (default): the device named by `player`, else the
-//     device whose scene geometry emits an acoustic signal (HostContext::geometry->emits_json), else
+//     device whose scene geometry emits an acoustic signal (HostContext::geometry->emits), else
 //     a device with an emitter (a live node with a `playback:` section) is the player; every other
 //     device listens.
 // Listener: every AudioDetection of its device on channel `channel` (of detector `detector`, any when

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -18,32 +19,28 @@
 #include "locus/dsp/prescreen.hpp"
 #include "locus/dsp/signals.hpp"
 
-#include <nlohmann/json.hpp>
-
 namespace locus {
 
 namespace {
 
-/// The distinct lfm signals of DeviceGeometry::scene_emits_json, in scene order. Malformed entries are
-/// skipped: the host built the text from a validated scene.
-std::vector<dsp::SignalSpec> scene_lfms(const char* scene_emits_json) {
+/// The distinct lfm signals of DeviceGeometry::scene_emits, in scene order, as unit-amplitude
+/// templates like those of the config (a detection's amplitude is relative to its template).
+std::vector<dsp::SignalSpec> scene_lfms(std::span<const SceneSignal> scene_emits) {
   std::vector<dsp::SignalSpec> out;
-  const nlohmann::json all = nlohmann::json::parse(scene_emits_json, nullptr, false);
-  if (!all.is_array()) return out;
-  for (const auto& entry : all) {
-    if (!entry.is_object() || !entry.contains("signal")) continue;
-    const auto& sig = entry["signal"];
-    if (!sig.is_object() || sig.value("type", std::string()) != "lfm") continue;
+  for (const SceneSignal& entry : scene_emits) {
+    const SignalSpec& sig = entry.signal;
+    if (sig.type != "lfm") continue;
+    const bool seen = std::any_of(out.begin(), out.end(), [&](const dsp::SignalSpec& o) {
+      return o.f0_hz == sig.f0_hz && o.f1_hz == sig.f1_hz && o.duration_s == sig.duration_s && o.fade_s == sig.fade_s;
+    });
+    if (seen) continue;
     dsp::SignalSpec s;
     s.type = "lfm";
-    s.f0_hz = sig.value("f0", 0.0);
-    s.f1_hz = sig.value("f1", 0.0);
-    s.duration_s = sig.value("duration", 0.0);
-    s.fade_s = sig.value("fade", 0.0);
-    const bool seen = std::any_of(out.begin(), out.end(), [&](const dsp::SignalSpec& o) {
-      return o.f0_hz == s.f0_hz && o.f1_hz == s.f1_hz && o.duration_s == s.duration_s && o.fade_s == s.fade_s;
-    });
-    if (!seen) out.push_back(s);
+    s.f0_hz = sig.f0_hz;
+    s.f1_hz = sig.f1_hz;
+    s.duration_s = sig.duration_s;
+    s.fade_s = sig.fade_s;
+    out.push_back(s);
   }
   return out;
 }
@@ -65,7 +62,7 @@ class ChirpDetector final : public Detector {
     // Templates: the `templates` quadruples when given, else the single f0/f1/duration/fade template.
     std::vector<dsp::SignalSpec> specs;
     const std::vector<double>& list = params.get_floats("templates");
-    if (params.get_bool("from_scene") && ctx.geometry != nullptr) specs = scene_lfms(ctx.geometry->scene_emits_json);
+    if (params.get_bool("from_scene") && ctx.geometry != nullptr) specs = scene_lfms(ctx.geometry->scene_emits);
     if (!specs.empty()) {
       ctx.log.info("chirp: " + std::to_string(specs.size()) + " template(s) from the scene's lfm signals");
     } else if (!list.empty()) {

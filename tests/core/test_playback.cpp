@@ -97,14 +97,13 @@ TEST(SchedulerEmitter, RendersSceneFormatSignals) {
   PlaybackScheduler s(44100.0, 4);
   SchedulerEmitter e(s);
   std::string err;
-  ASSERT_TRUE(e.schedule(R"({"type":"lfm","f0":18000,"f1":22000,"duration":0.05,"fade":0.005})", 256, 0.5, &err))
-      << err;
   dsp::SignalSpec spec;
   spec.type = "lfm";
   spec.f0_hz = 18000;
   spec.f1_hz = 22000;
   spec.duration_s = 0.05;
   spec.fade_s = 0.005;
+  ASSERT_TRUE(e.schedule(spec, 256, 0.5, &err)) << err;
   const std::vector<float> want = dsp::render_signal(spec, 44100.0);
   std::vector<float> out(256 + want.size() + 64);
   s.render_interleaved(out.data(), static_cast<std::uint32_t>(out.size()), 1);
@@ -116,17 +115,23 @@ TEST(SchedulerEmitter, RefusesBadRequestsWithReasons) {
   PlaybackScheduler s(44100.0, 4);
   SchedulerEmitter e(s);
   std::string err;
-  EXPECT_FALSE(e.schedule(R"({"type":"lfm","f0":18000})", 0, 1.0, &err));
+  SignalSpec f0_only;  // an lfm without its duration
+  f0_only.type = "lfm";
+  f0_only.f0_hz = 18000;
+  EXPECT_FALSE(e.schedule(f0_only, 0, 1.0, &err));
   EXPECT_NE(err.find("duration"), std::string::npos) << err;
-  EXPECT_FALSE(e.schedule(R"({"type":"ble","address":"AA:BB:CC:DD:EE:FF","tx_power_dbm":-59,"interval_s":0.1})", 0,
-                          1.0, &err));
+  EXPECT_FALSE(e.schedule(parse_signal(R"({"type":"ble","address":"AA:BB:CC:DD:EE:FF","tx_power_dbm":-59,"interval_s":0.1})"),
+                          0, 1.0, &err));
   EXPECT_NE(err.find("not acoustic"), std::string::npos) << err;
-  EXPECT_FALSE(e.schedule("{not json", 0, 1.0, &err));
-  EXPECT_FALSE(err.empty());
-  EXPECT_FALSE(e.schedule(R"({"type":"lfm","f0":1000,"f1":2000,"duration":0.01})", 0, 2.0, &err));
+  SignalSpec loud = parse_signal(R"({"type":"lfm","f0":1000,"f1":2000,"duration":0.01})");
+  loud.amplitude = 1.5;  // out of 0..1: typed data is checked by the same rules as parsed text
+  EXPECT_FALSE(e.schedule(loud, 0, 1.0, &err));
+  EXPECT_NE(err.find("amplitude: value 1.5 out of range (expected 0..1)"), std::string::npos) << err;
+  const SignalSpec ok = parse_signal(R"({"type":"lfm","f0":1000,"f1":2000,"duration":0.01})");
+  EXPECT_FALSE(e.schedule(ok, 0, 2.0, &err));
   std::vector<float> out(64);
   s.render_interleaved(out.data(), 64, 1);
-  EXPECT_FALSE(e.schedule(R"({"type":"lfm","f0":1000,"f1":2000,"duration":0.01})", 10, 1.0, &err));
+  EXPECT_FALSE(e.schedule(ok, 10, 1.0, &err));
   EXPECT_NE(err.find("already been played"), std::string::npos) << err;
   EXPECT_EQ(e.late_emissions(), 5u);
 }

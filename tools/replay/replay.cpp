@@ -116,7 +116,7 @@ GeometrySpec geometry_of(const scene::DeviceSpec& spec) {
     g.geometry.has_anchor = true;
     g.geometry.anchor_m = *spec.anchor_position_m;
   }
-  g.emits_json = scene::signals_to_json(spec.emits);
+  g.emits = spec.emits;
   return g;
 }
 
@@ -200,7 +200,7 @@ int run_replay(const ReplayOptions& opts) {
   std::vector<std::unique_ptr<Pipeline>> nodes;
   try {
     writer = std::make_unique<JsonLinesWriter>(opts.output ? *opts.output : config.output.path);
-    const std::string scene_emits = scene::scene_emits_to_json(sc);
+    const std::vector<SceneSignal> scene_emits = scene::scene_signals(sc);
     for (const scene::DeviceSpec& spec : sc.devices) {
       if (!has_stream(spec)) continue;
       std::vector<std::string> notes;
@@ -211,7 +211,7 @@ int run_replay(const ReplayOptions& opts) {
       po.write_output = false;
       po.localizer_device = spec.id;
       GeometrySpec g = geometry_of(spec);
-      g.scene_emits_json = scene_emits;
+      g.scene_emits = scene_emits;
       po.geometry.emplace(spec.id, std::move(g));
       auto p = std::make_unique<Pipeline>(node, registry, std::move(po));
       for (EventType t : events) {

@@ -1,7 +1,8 @@
 // The emitter: how a plugin makes its device play a sound (AMIL's player beeps, a TUM device's
 // ranging chirp, a SpyLoc beacon). Part of the plugin ABI (HostContext::emitter).
 //
-// A plugin chooses the signal (a scene-format signal object, docs/scene-format.md) and the frame of
+// A plugin chooses the signal (a SignalSpec, locus/signal.hpp: typically its device's
+// DeviceGeometry::emits entry, or one it built or parsed itself) and the frame of
 // the device's playback stream at which it must start; the host renders it on the main thread and
 // hands it to the playback backend (ALSA or JACK) through a lock-free queue, so the audio callback only
 // mixes ready samples. Where the sound actually left the speaker is NOT known from the schedule
@@ -10,7 +11,8 @@
 
 #include <cstdint>
 #include <string>
-#include <string_view>
+
+#include "locus/signal.hpp"
 
 namespace locus {
 
@@ -18,13 +20,12 @@ class Emitter {
  public:
   virtual ~Emitter() = default;
 
-  /// [main] Schedules one emission. `signal_json` is one scene-format signal object, e.g.
-  /// {"type":"lfm","f0":18000,"f1":22000,"duration":0.05,"fade":0.005,"amplitude":0.8}; it starts at
-  /// frame `start_frame` of the playback stream (see playback_frame()), scaled by `gain` (0..1), on
-  /// every output channel. Returns false and sets `*error` (when given) if the signal is invalid or
-  /// not acoustic, the start frame has already been played, or too many emissions are pending.
-  virtual bool schedule(std::string_view signal_json, std::uint64_t start_frame, double gain,
-                        std::string* error) = 0;
+  /// [main] Schedules one emission of `signal` (e.g. type "lfm", f0_hz 18000, f1_hz 22000, duration_s
+  /// 0.05, fade_s 0.005, amplitude 0.8); it starts at frame `start_frame` of the playback stream (see
+  /// playback_frame()), scaled by `gain` (0..1), on every output channel. Returns false and sets
+  /// `*error` (when given) if the signal is invalid (check_signal; the message names the field) or not
+  /// acoustic, the start frame has already been played, or too many emissions are pending.
+  virtual bool schedule(const SignalSpec& signal, std::uint64_t start_frame, double gain, std::string* error) = 0;
 
   /// [any] The next frame the playback stream will render (its frame counter now). Schedule at least
   /// one period ahead of it.

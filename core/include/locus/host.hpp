@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -12,6 +13,7 @@
 #include "locus/events.hpp"
 #include "locus/fft.hpp"
 #include "locus/link.hpp"
+#include "locus/signal.hpp"
 
 namespace locus {
 
@@ -43,13 +45,17 @@ class Publisher {
   virtual void publish(const Event& event) = 0;
 };
 
-/// Where the parts of the device a plugin instance serves are (plain data, part of the plugin ABI).
+/// Where the parts of the device a plugin instance serves are, and what it and the scene emit (part of
+/// the plugin ABI).
 ///
 /// The host fills it when it knows the device: `locus replay` from the scene's scene.yaml (mics,
-/// speaker, emits, anchor of that device, docs/scene-format.md); a node run from a config alone has no
-/// geometry yet (HostContext::geometry == nullptr). Positions are metres; mics and speaker in the
-/// device body frame (Android convention), the anchor in the world frame. The object and the
-/// emits_json / scene_emits_json texts stay valid and unchanged for the plugin instance's lifetime.
+/// speaker, emits, anchor of that device, docs/scene-format.md); a node run from a config with a
+/// `geometry:` section from that (no signals); a node run from a config alone has no geometry
+/// (HostContext::geometry == nullptr). Positions are metres; mics and speaker in the device body frame
+/// (Android convention), the anchor in the world frame. The object and the signals its spans point to
+/// are owned by the host and stay valid and unchanged for the plugin instance's lifetime; the signals
+/// were validated by the host (check_signal finds nothing wrong with them, though their type may be
+/// one this build does not know: see is_known_signal_type).
 struct DeviceGeometry {
   static constexpr std::uint32_t kMaxMics = 32;
   std::uint32_t mic_count = 0;                           ///< valid rows of mics_m = audio channels
@@ -58,13 +64,12 @@ struct DeviceGeometry {
   std::array<double, 3> speaker_m{};
   bool has_anchor = false;                               ///< true: the device's position is known
   std::array<double, 3> anchor_m{};                      ///< world frame
-  /// The device's `emits` list as a JSON array with the field names of scene-format.md ("[]" when it
-  /// emits nothing), e.g. [{"type":"lfm","f0":2000,"f1":8000,"duration":0.04,"fade":0.005}].
-  const char* emits_json = "[]";
-  /// Every signal any device or emitter of the scene emits, as a JSON array of {"id": <emitting device
-  /// or emitter id>, "signal": <signal object as in emits_json>} ("[]" when the host knows no scene).
-  /// Lets a listener's detector take its template from the scene instead of its config.
-  const char* scene_emits_json = "[]";
+  /// The device's `emits` list, in scene order (empty when it emits nothing).
+  std::span<const SignalSpec> emits;
+  /// Every signal any device or emitter of the scene emits, with its emitter's id, in scene order
+  /// (empty when the host knows no scene). Lets a listener's detector take its template from the
+  /// scene instead of its config.
+  std::span<const SceneSignal> scene_emits;
 };
 
 /// Everything a plugin instance gets from its host at configure() time. References stay valid until

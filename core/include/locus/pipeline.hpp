@@ -177,12 +177,12 @@ struct DeviceStats {
                                      ///< "playback: ..." for the sink)
 };
 
-/// The geometry a pipeline hands to the plugins of one device (DeviceGeometry::emits_json points into
-/// `emits_json`, fixed up by the pipeline).
+/// The geometry a pipeline hands to the plugins of one device, with the signals it owns for them
+/// (DeviceGeometry::emits / scene_emits point into `emits` / `scene_emits`, fixed up by the pipeline).
 struct GeometrySpec {
   DeviceGeometry geometry;
-  std::string emits_json = "[]";
-  std::string scene_emits_json = "[]";  ///< DeviceGeometry::scene_emits_json
+  std::vector<SignalSpec> emits;          ///< DeviceGeometry::emits
+  std::vector<SceneSignal> scene_emits;   ///< DeviceGeometry::scene_emits
 };
 
 /// How a pipeline is embedded (defaults: a stand-alone node, as locusd runs it).

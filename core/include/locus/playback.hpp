@@ -79,11 +79,11 @@ class PlaybackScheduler {
 };
 
 /// The Emitter a device's plugins get (HostContext::emitter) when the device has a `playback:`
-/// section: parses the signal JSON, renders it with the DSP toolbox and submits it.
+/// section: checks the signal (check_signal), renders it with the DSP toolbox and submits it.
 class SchedulerEmitter final : public Emitter {
  public:
   explicit SchedulerEmitter(PlaybackScheduler& scheduler) : scheduler_(scheduler) {}
-  bool schedule(std::string_view signal_json, std::uint64_t start_frame, double gain, std::string* error) override;
+  bool schedule(const SignalSpec& signal, std::uint64_t start_frame, double gain, std::string* error) override;
   std::uint64_t playback_frame() const noexcept override { return scheduler_.frame(); }
   double sample_rate_hz() const noexcept override { return scheduler_.sample_rate_hz(); }
   std::uint64_t late_emissions() const noexcept override { return scheduler_.late_clips() + refused_; }

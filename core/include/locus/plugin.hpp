@@ -24,7 +24,10 @@
 #include "locus/params.hpp"
 
 /// Bump on any change of layout or virtual table in the public headers.
-#define LOCUS_PLUGIN_ABI_VERSION 3u  // 2: HostContext::geometry (DeviceGeometry); 3: HostContext::emitter, DeviceGeometry::scene_emits_json
+// 2: HostContext::geometry (DeviceGeometry); 3: HostContext::emitter, DeviceGeometry::scene_emits_json;
+// 4: signals typed (SignalSpec, locus/signal.hpp): DeviceGeometry::emits / scene_emits spans replace
+//    the JSON texts, Emitter::schedule takes a SignalSpec.
+#define LOCUS_PLUGIN_ABI_VERSION 4u
 #define LOCUS_PLUGIN_ENUM_SYMBOL "locus_plugin_enum"
 
 extern "C" {

@@ -63,8 +63,8 @@ void add_config_geometry(const Config& config, std::map<std::string, GeometrySpe
     geometry.emplace(dc.id, geometry_from_config(*dc.geometry));
   }
   for (auto& [id, spec] : geometry) {
-    spec.geometry.emits_json = spec.emits_json.c_str();
-    spec.geometry.scene_emits_json = spec.scene_emits_json.c_str();
+    spec.geometry.emits = spec.emits;
+    spec.geometry.scene_emits = spec.scene_emits;
   }
 }
 

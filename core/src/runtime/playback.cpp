@@ -10,7 +10,6 @@
 #include <utility>
 
 #include "locus/dsp/signals.hpp"
-#include "locus/scene/scene.hpp"
 
 namespace locus {
 
@@ -144,19 +143,17 @@ void PlaybackScheduler::skip(std::uint64_t frames) noexcept {
   frame_.store(end, std::memory_order_release);
 }
 
-bool SchedulerEmitter::schedule(std::string_view signal_json, std::uint64_t start_frame, double gain,
-                                std::string* error) {
+bool SchedulerEmitter::schedule(const SignalSpec& spec, std::uint64_t start_frame, double gain, std::string* error) {
   auto fail = [&](std::string msg) {
     ++refused_;
     if (error != nullptr) *error = std::move(msg);
     return false;
   };
   if (!(gain >= 0.0 && gain <= 1.0)) return fail("emitter: gain must be in 0..1");
-  dsp::SignalSpec spec;
-  try {
-    spec = scene::parse_signal_text(signal_json, "emitter signal");
-  } catch (const std::exception& e) {
-    return fail(e.what());
+  if (const std::vector<SignalIssue> issues = check_signal(spec); !issues.empty()) {
+    std::string msg = "emitter: invalid signal";
+    for (const SignalIssue& is : issues) msg += (&is == &issues.front() ? ": " : "; ") + is.field + ": " + is.message;
+    return fail(std::move(msg));
   }
   if (!spec.acoustic()) return fail("emitter: signal type '" + spec.type + "' is not acoustic (lfm, gold, multitone)");
   if (start_frame < scheduler_.frame()) {

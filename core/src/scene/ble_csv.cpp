@@ -1,4 +1,4 @@
-// ble.csv and BLE address text (ble_csv.hpp).
+// ble.csv (ble_csv.hpp); BLE address text is locus/signal.hpp's.
 #include "locus/scene/ble_csv.hpp"
 
 #include <cstdio>
@@ -11,29 +11,6 @@ namespace locus::scene {
 using detail::shown;
 using detail::to_float;
 using detail::trim;
-
-bool parse_ble_address(std::string_view s, std::array<std::uint8_t, 6>& out) noexcept {
-  if (s.size() != 17) return false;
-  auto hex = [](char c) -> int {
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-    return -1;
-  };
-  for (int i = 0; i < 6; ++i) {
-    const int hi = hex(s[i * 3]), lo = hex(s[i * 3 + 1]);
-    if (hi < 0 || lo < 0) return false;
-    if (i < 5 && s[i * 3 + 2] != ':') return false;
-    out[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(hi * 16 + lo);
-  }
-  return true;
-}
-
-std::string format_ble_address(const std::array<std::uint8_t, 6>& a) {
-  char b[18];
-  std::snprintf(b, sizeof b, "%02X:%02X:%02X:%02X:%02X:%02X", a[0], a[1], a[2], a[3], a[4], a[5]);
-  return b;
-}
 
 BleCsvReader::BleCsvReader(const std::string& path, DeviceId device) : csv_(path), device_(device) {
   t_ = csv_.require_column("t");

@@ -2,9 +2,9 @@
 //
 // Reading is strict about what the format requires and tolerant about what it allows: unknown keys
 // are ignored, `emits` entries of an unknown type are kept (require_known_signal_types() turns them
-// into errors for a consumer that needs them). Numbers are written in their shortest round-trip form,
+// into errors for a consumer that needs them). Signals are read and written by the one signal parser
+// and writer (locus/signal_yaml.hpp); this file only places their issues in scene.yaml. Numbers are written in their shortest round-trip form,
 // so load_scene(write_scene_yaml(x)) reproduces x exactly.
-#include <nlohmann/json.hpp>
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
@@ -16,13 +16,11 @@
 #include "locus/ids.hpp"
 #include "locus/scene/scene.hpp"
 #include "locus/scene/streams.hpp"
+#include "locus/signal_yaml.hpp"
 
 namespace locus::scene {
 
 namespace {
-
-const char* const kKnownTypes[] = {"lfm", "gold", "multitone", "ble"};
-constexpr int kGoldDegrees[] = {5, 6, 7, 9, 10, 11};
 
 std::string shown(const YAML::Node& n) {
   if (n.IsScalar()) return "'" + n.Scalar() + "'";
@@ -106,125 +104,33 @@ class Checker {
     return v;
   }
 
+  /// One signal object (the one signal parser, locus/signal_yaml.hpp), its issues collected here.
+  dsp::SignalSpec signal(const YAML::Node& n, const std::string& where) {
+    std::vector<SignalIssue> found;
+    dsp::SignalSpec spec = parse_signal_node(n, where, found);
+    for (SignalIssue& f : found) {
+      SceneIssue is;
+      is.file = file_;
+      is.line = f.line;
+      is.column = f.column;
+      is.message = f.field.empty() ? std::move(f.message) : f.field + ": " + f.message;
+      issues.push_back(std::move(is));
+    }
+    return spec;
+  }
+
   std::vector<SceneIssue> issues;
 
  private:
   std::string file_;
 };
 
-dsp::SignalSpec parse_signal(Checker& ck, const YAML::Node& e, const std::string& where) {
-  dsp::SignalSpec s;
-  if (!e.IsMap()) {
-    ck.issue(e, where, "expected a mapping {type: ..., ...}, got " + shown(e));
-    return s;
-  }
-  const YAML::Node tn = ck.required(e, "type", where, "lfm, gold, multitone, ble or a project type");
-  if (!tn.IsDefined()) return s;
-  if (auto t = ck.string(tn, where + ".type")) s.type = *t;
-  auto num = [&](const char* key, double& out, bool req, double lo, double hi, const char* range) {
-    YAML::Node n = req ? ck.required(e, key, where, std::string("'") + key + "' for type " + s.type) : e[key];
-    if (!n.IsDefined() || n.IsNull()) return;
-    auto v = ck.number(n, where + "." + key);
-    if (!v) return;
-    if (*v < lo || *v > hi) {
-      ck.issue(n, where + "." + key, "value " + format_double(*v) + " out of range (expected " + range + ")");
-      return;
-    }
-    out = *v;
-  };
-  auto integer = [&](const char* key, int& out, long long lo, long long hi, const std::string& range) {
-    YAML::Node n = ck.required(e, key, where, std::string("'") + key + "' for type " + s.type);
-    if (!n.IsDefined()) return;
-    auto v = ck.integer(n, where + "." + key);
-    if (!v) return;
-    if (*v < lo || *v > hi) {
-      ck.issue(n, where + "." + key, "value " + std::to_string(*v) + " out of range (expected " + range + ")");
-      return;
-    }
-    out = static_cast<int>(*v);
-  };
-  constexpr double kInf = 1e300;
-  if (s.type == "lfm") {
-    num("f0", s.f0_hz, true, 0.0, kInf, ">= 0 Hz");
-    num("f1", s.f1_hz, true, 0.0, kInf, ">= 0 Hz");
-    num("duration", s.duration_s, true, 1e-12, kInf, "> 0 s");
-    num("fade", s.fade_s, false, 0.0, kInf, ">= 0 s");
-    num("amplitude", s.amplitude, false, 0.0, 1.0, "0..1");
-  } else if (s.type == "multitone") {
-    const YAML::Node tn2 = ck.required(e, "tones_hz", where, "a list of frequencies in Hz");
-    if (tn2.IsDefined()) {
-      if (!tn2.IsSequence() || tn2.size() == 0) {
-        ck.issue(tn2, where + ".tones_hz", "expected a non-empty list of frequencies in Hz, got " + shown(tn2));
-      } else {
-        for (std::size_t i = 0; i < tn2.size(); ++i) {
-          auto v = ck.number(tn2[i], where + ".tones_hz[" + std::to_string(i) + "]");
-          if (v && *v <= 0.0)
-            ck.issue(tn2[i], where + ".tones_hz[" + std::to_string(i) + "]",
-                     "value " + format_double(*v) + " out of range (expected > 0 Hz)");
-          else if (v)
-            s.tones_hz.push_back(*v);
-        }
-      }
-    }
-    num("duration", s.duration_s, true, 1e-12, kInf, "> 0 s");
-    num("fade", s.fade_s, false, 0.0, kInf, ">= 0 s");
-    num("amplitude", s.amplitude, false, 0.0, 1.0, "0..1");
-  } else if (s.type == "gold") {
-    const YAML::Node cn = e["chips"];
-    if (cn.IsDefined() && !cn.IsNull()) {
-      if (auto c = ck.string(cn, where + ".chips")) {
-        const auto bad = c->find_first_not_of("01");
-        if (c->empty())
-          ck.issue(cn, where + ".chips", "expected a string of 0 and 1, got an empty string");
-        else if (bad != std::string::npos)
-          ck.issue(cn, where + ".chips",
-                   "expected only '0' and '1', got '" + std::string(1, (*c)[bad]) + "' at position " +
-                       std::to_string(bad));
-        else
-          s.chips = *c;
-      }
-    }
-    const YAML::Node dn = ck.required(e, "degree", where, "'degree' for type gold");
-    if (dn.IsDefined()) {
-      if (auto d = ck.integer(dn, where + ".degree")) {
-        bool listed = false;
-        for (int g : kGoldDegrees) listed = listed || g == *d;
-        if (!listed && s.chips.empty() && !(cn.IsDefined() && !cn.IsNull()))
-          ck.issue(dn, where + ".degree",
-                   "degree " + std::to_string(*d) + " has no preferred pair (expected 5, 6, 7, 9, 10 or 11, or give 'chips')");
-        else if (*d < 1 || *d > 30)
-          ck.issue(dn, where + ".degree", "degree " + std::to_string(*d) + " out of range (expected 1..30)");
-        else
-          s.degree = static_cast<int>(*d);
-      }
-    }
-    const long long max_index = s.degree > 0 ? (1LL << s.degree) : (1LL << 30);
-    integer("index", s.index, 0, max_index, "0.." + std::to_string(max_index));
-    num("carrier", s.carrier_hz, true, 0.0, kInf, ">= 0 Hz");
-    integer("chip_samples", s.chip_samples, 1, 1 << 20, "1..1048576");
-    num("amplitude", s.amplitude, false, 0.0, 1.0, "0..1");
-  } else if (s.type == "ble") {
-    const YAML::Node an = ck.required(e, "address", where, "a BLE address AA:BB:CC:DD:EE:FF");
-    if (an.IsDefined()) {
-      if (auto a = ck.string(an, where + ".address")) {
-        std::array<std::uint8_t, 6> bytes{};
-        if (!parse_ble_address(*a, bytes))
-          ck.issue(an, where + ".address", "expected a BLE address AA:BB:CC:DD:EE:FF (hex), got '" + *a + "'");
-        else
-          s.address = *a;
-      }
-    }
-    num("tx_power_dbm", s.tx_power_dbm, true, -200.0, 100.0, "-200..100 dBm");
-    num("interval_s", s.interval_s, true, 1e-12, kInf, "> 0 s");
-  }
-  // else: a project-specific type, kept as is (require_known_signal_types reports it to consumers)
-  if (s.acoustic()) {
-    const YAML::Node sd = e["sync_delay_s"];
-    if (sd.IsDefined() && !sd.IsNull()) {
-      if (auto v = ck.number(sd, where + ".sync_delay_s")) s.sync_delay_s = *v;
-    }
-  }
-  return s;
+bool valid_id(const std::string& s) {
+  if (s.empty()) return false;
+  for (char c : s)
+    if (!((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-'))
+      return false;
+  return true;
 }
 
 void parse_emits(Checker& ck, const YAML::Node& n, const std::string& where, std::vector<dsp::SignalSpec>& out,
@@ -236,7 +142,7 @@ void parse_emits(Checker& ck, const YAML::Node& n, const std::string& where, std
   }
   for (std::size_t i = 0; i < n.size(); ++i) {
     const YAML::Node e = n[i];
-    out.push_back(parse_signal(ck, e, where + "[" + std::to_string(i) + "]"));
+    out.push_back(ck.signal(e, where + "[" + std::to_string(i) + "]"));
     const YAML::Mark m = e.Mark();
     at.emplace_back(m.is_null() ? 0 : m.line + 1, m.is_null() ? 0 : m.column + 1);
   }
@@ -255,78 +161,13 @@ std::optional<Vec3> parse_anchor(Checker& ck, const YAML::Node& n, const std::st
 
 }  // namespace
 
-dsp::SignalSpec parse_signal_text(std::string_view text, const std::string& name) {
-  Checker ck(name);
-  YAML::Node n;
-  try {
-    n = YAML::Load(std::string(text));
-  } catch (const YAML::Exception& e) {
-    SceneIssue is;
-    is.file = name;
-    if (!e.mark.is_null()) {
-      is.line = e.mark.line + 1;
-      is.column = e.mark.column + 1;
-    }
-    is.message = "not valid YAML/JSON: " + e.msg;
-    throw SceneError({is});
-  }
-  if (!n.IsMap()) {
-    ck.issue(n, "", "expected one signal object ({\"type\": ..., ...}), got " + shown(n));
-    throw SceneError(std::move(ck.issues));
-  }
-  dsp::SignalSpec spec = parse_signal(ck, n, "");
-  if (!ck.issues.empty()) throw SceneError(std::move(ck.issues));
-  return spec;
-}
-
-std::string signals_to_json(const std::vector<dsp::SignalSpec>& signals) {
-  nlohmann::ordered_json out = nlohmann::ordered_json::array();
-  for (const dsp::SignalSpec& s : signals) {
-    nlohmann::ordered_json j{{"type", s.type}};
-    if (s.type == "lfm") {
-      j["f0"] = s.f0_hz;
-      j["f1"] = s.f1_hz;
-      j["duration"] = s.duration_s;
-      j["fade"] = s.fade_s;
-      j["amplitude"] = s.amplitude;
-    } else if (s.type == "multitone") {
-      j["tones_hz"] = s.tones_hz;
-      j["duration"] = s.duration_s;
-      j["fade"] = s.fade_s;
-      j["amplitude"] = s.amplitude;
-    } else if (s.type == "gold") {
-      j["degree"] = s.degree;
-      j["index"] = s.index;
-      j["carrier"] = s.carrier_hz;
-      j["chip_samples"] = s.chip_samples;
-      j["amplitude"] = s.amplitude;
-      if (!s.chips.empty()) j["chips"] = s.chips;
-    } else if (s.type == "ble") {
-      j["address"] = s.address;
-      j["tx_power_dbm"] = s.tx_power_dbm;
-      j["interval_s"] = s.interval_s;
-    }
-    if (s.sync_delay_s) j["sync_delay_s"] = *s.sync_delay_s;
-    out.push_back(std::move(j));
-  }
-  return out.dump();
-}
-
-std::string scene_emits_to_json(const Scene& scene) {
-  nlohmann::ordered_json out = nlohmann::ordered_json::array();
-  auto add = [&](const std::string& id, const std::vector<dsp::SignalSpec>& emits) {
-    const nlohmann::ordered_json signals = nlohmann::ordered_json::parse(signals_to_json(emits));
-    for (const auto& sig : signals) out.push_back(nlohmann::ordered_json{{"id", id}, {"signal", sig}});
-  };
-  for (const DeviceSpec& d : scene.devices) add(d.id, d.emits);
-  for (const EmitterSpec& e : scene.emitters) add(e.id, e.emits);
-  return out.dump();
-}
-
-bool is_known_signal_type(const std::string& type) noexcept {
-  for (const char* k : kKnownTypes)
-    if (type == k) return true;
-  return false;
+std::vector<SceneSignal> scene_signals(const Scene& scene) {
+  std::vector<SceneSignal> out;
+  for (const DeviceSpec& d : scene.devices)
+    for (const dsp::SignalSpec& sig : d.emits) out.push_back(SceneSignal{d.id, sig});
+  for (const EmitterSpec& e : scene.emitters)
+    for (const dsp::SignalSpec& sig : e.emits) out.push_back(SceneSignal{e.id, sig});
+  return out;
 }
 
 Scene load_scene(const std::string& dir) {
@@ -565,52 +406,9 @@ void emit_vec3(YAML::Emitter& out, const Vec3& v) {
   out << YAML::EndSeq;
 }
 
-void emit_signal(YAML::Emitter& out, const dsp::SignalSpec& s) {
-  out << YAML::Flow << YAML::BeginMap;
-  out << YAML::Key << "type" << YAML::Value << s.type;
-  if (s.type == "lfm" || s.type == "multitone") {
-    if (s.type == "lfm") {
-      out << YAML::Key << "f0" << YAML::Value;
-      emit_num(out, s.f0_hz);
-      out << YAML::Key << "f1" << YAML::Value;
-      emit_num(out, s.f1_hz);
-    } else {
-      out << YAML::Key << "tones_hz" << YAML::Value << YAML::Flow << YAML::BeginSeq;
-      for (double f : s.tones_hz) emit_num(out, f);
-      out << YAML::EndSeq;
-    }
-    out << YAML::Key << "duration" << YAML::Value;
-    emit_num(out, s.duration_s);
-    out << YAML::Key << "fade" << YAML::Value;
-    emit_num(out, s.fade_s);
-    out << YAML::Key << "amplitude" << YAML::Value;
-    emit_num(out, s.amplitude);
-  } else if (s.type == "gold") {
-    out << YAML::Key << "degree" << YAML::Value << s.degree;
-    out << YAML::Key << "index" << YAML::Value << s.index;
-    out << YAML::Key << "carrier" << YAML::Value;
-    emit_num(out, s.carrier_hz);
-    out << YAML::Key << "chip_samples" << YAML::Value << s.chip_samples;
-    out << YAML::Key << "amplitude" << YAML::Value;
-    emit_num(out, s.amplitude);
-    if (!s.chips.empty()) out << YAML::Key << "chips" << YAML::Value << YAML::DoubleQuoted << s.chips;
-  } else if (s.type == "ble") {
-    out << YAML::Key << "address" << YAML::Value << YAML::DoubleQuoted << s.address;
-    out << YAML::Key << "tx_power_dbm" << YAML::Value;
-    emit_num(out, s.tx_power_dbm);
-    out << YAML::Key << "interval_s" << YAML::Value;
-    emit_num(out, s.interval_s);
-  }
-  if (s.acoustic() && s.sync_delay_s) {
-    out << YAML::Key << "sync_delay_s" << YAML::Value;
-    emit_num(out, *s.sync_delay_s);
-  }
-  out << YAML::EndMap;
-}
-
 void emit_emits(YAML::Emitter& out, const std::vector<dsp::SignalSpec>& v) {
   out << YAML::Key << "emits" << YAML::Value << YAML::BeginSeq;
-  for (const auto& s : v) emit_signal(out, s);
+  for (const auto& s : v) emit_signal_yaml(out, s);
   out << YAML::EndSeq;
 }
 
@@ -779,7 +577,7 @@ void require_known_signal_types(const Scene& sc, const std::vector<std::string>&
         is.column = at[i].second;
       }
       is.message = std::string(kind) + " '" + id + "': emits[" + std::to_string(i) + "]: unknown signal type '" +
-                   emits[i].type + "' (known: lfm, gold, multitone, ble)";
+                   emits[i].type + "' (known: " + kKnownSignalTypes + ")";
       issues.push_back(is);
     }
   };

@@ -134,8 +134,10 @@ class E2eBeep final : public Localizer {
       throw std::runtime_error("e2e_beep: no emitter (HostContext::emitter is null): the node needs exactly one "
                                "device and that device a playback: section");
     }
+    // The signal as the config gives it (YAML or JSON); a SignalError names the field.
+    const SignalSpec signal = parse_signal(params.get_string("signal"), "e2e_beep: param 'signal'");
     std::string err;
-    if (!emitter_->schedule(params.get_string("signal"), start_frame_, params.get_float("gain"), &err)) {
+    if (!emitter_->schedule(signal, start_frame_, params.get_float("gain"), &err)) {
       throw std::runtime_error("e2e_beep: schedule at frame " + std::to_string(start_frame_) + " refused: " + err);
     }
     log_->info("emission scheduled at playback frame " + std::to_string(start_frame_) + " (playback frame now " +

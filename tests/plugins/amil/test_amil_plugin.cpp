@@ -6,7 +6,6 @@
 
 #include <cmath>
 #include <memory>
-#include <nlohmann/json.hpp>
 
 #include "amil/amil.hpp"
 #include "amil/messages.hpp"
@@ -20,12 +19,12 @@ using namespace locus;
 class FakeEmitter final : public Emitter {
  public:
   struct Call {
-    std::string signal;
+    SignalSpec signal;
     std::uint64_t start_frame;
     double gain;
   };
-  bool schedule(std::string_view signal_json, std::uint64_t start_frame, double gain, std::string*) override {
-    calls.push_back({std::string(signal_json), start_frame, gain});
+  bool schedule(const SignalSpec& signal, std::uint64_t start_frame, double gain, std::string*) override {
+    calls.push_back({signal, start_frame, gain});
     return true;
   }
   std::uint64_t playback_frame() const noexcept override { return frame; }
@@ -63,13 +62,15 @@ bool is_player(const Localizer& l) {
   return std::find(s.begin(), s.end(), EventType::ImuSample) != s.end();
 }
 
-constexpr const char* kLfm = R"([{"type":"lfm","f0":18000,"f1":22000,"duration":0.05,"fade":0.005,"amplitude":1}])";
+/// The player's `emits`: one lfm beep, as the scene gives it.
+const std::vector<SignalSpec> kLfm = {
+    parse_signal(R"({"type":"lfm","f0":18000,"f1":22000,"duration":0.05,"fade":0.005,"amplitude":1})")};
 
 TEST(AmilPlugin, Roles) {
   test::TestHost host;
   DeviceGeometry emitting, silent;
-  emitting.emits_json = kLfm;
-  silent.emits_json = "[]";
+  emitting.emits = kLfm;
+  silent.emits = {};
   FakeEmitter emitter;
   struct Case {
     const char* what;
@@ -100,8 +101,10 @@ TEST(AmilPlugin, Roles) {
   auto bad = make_amil();
   HostContext ctx = host.context("amil", "A");
   EXPECT_THROW(bad->configure(params({{"topic", std::string("amil/#")}}), ctx), std::runtime_error);
-  DeviceGeometry broken;
-  broken.emits_json = "{not json";
+  DeviceGeometry broken;  // a beep the emitter would refuse (duration 0): refused at configure()
+  std::vector<SignalSpec> broken_emits = kLfm;
+  broken_emits[0].duration_s = 0.0;
+  broken.emits = broken_emits;
   ctx.geometry = &broken;
   EXPECT_THROW(bad->configure(params(), ctx), std::runtime_error);
 }
@@ -120,7 +123,7 @@ AudioDetection detection(const char* device, double frame, std::uint16_t channel
 TEST(AmilPlugin, ListenerPublishesHelloArrivalsAndDone) {
   test::TestHost host;
   DeviceGeometry g;
-  g.emits_json = "[]";
+  g.emits = {};
   auto loc = make_amil();
   HostContext ctx = host.context("amil", "L3");
   ctx.geometry = &g;
@@ -173,10 +176,9 @@ TEST(AmilPlugin, LiveBeepsThroughTheEmitterAtEveryPause) {
   // The origin beep once at rest, then one at the end of each of the 4 strokes.
   ASSERT_EQ(emitter.calls.size(), 5u);
   for (const auto& c : emitter.calls) {
-    const auto j = nlohmann::json::parse(c.signal);
-    EXPECT_EQ(j["type"], "lfm");
-    EXPECT_DOUBLE_EQ(j["f0"].get<double>(), 18000.0);
-    EXPECT_DOUBLE_EQ(j["f1"].get<double>(), 22000.0);
+    EXPECT_EQ(c.signal.type, "lfm");
+    EXPECT_DOUBLE_EQ(c.signal.f0_hz, 18000.0);
+    EXPECT_DOUBLE_EQ(c.signal.f1_hz, 22000.0);
     EXPECT_DOUBLE_EQ(c.gain, 0.5);
   }
   // Scheduled beep_delay_s (0.05 s = 2400 frames at 48 kHz) ahead of the playback position.
@@ -201,12 +203,12 @@ struct FieldTest {
   CollectingPublisher out;
 
   explicit FieldTest(std::uint64_t seed, const Params& p, int gestures = 1) : g(amil_test::make_gesture(seed, gestures)) {
-    player_geo.emits_json = kLfm;
+    player_geo.emits = kLfm;
     player_geo.has_speaker = true;
     player_geo.speaker_m = {g.speaker_body.x(), g.speaker_body.y(), 0.0};
     player_geo.mic_count = 1;
     player_geo.mics_m[0] = {0.0, -0.068, 0.0};
-    listener_geo.emits_json = "[]";
+    listener_geo.emits = {};
     player = make_amil();
     HostContext pctx = host.context("amil", "P");
     pctx.geometry = &player_geo;

@@ -409,11 +409,12 @@ TEST(ChirpDetector, TemplatesFromTheScenesLfmSignals) {
   // distinct lfm of the scene (here a TUM sweep and the AMIL beep; duplicates and non-lfm skipped).
   const dsp::SignalSpec amil = lfm(18000, 22000, 0.05, 0.005);
   DeviceGeometry g;
-  g.scene_emits_json =
-      R"([{"id":"A","signal":{"type":"lfm","f0":2000,"f1":8000,"duration":0.04,"fade":0.005,"amplitude":1}},)"
-      R"({"id":"P","signal":{"type":"lfm","f0":18000,"f1":22000,"duration":0.05,"fade":0.005,"amplitude":1}},)"
-      R"({"id":"Q","signal":{"type":"lfm","f0":18000,"f1":22000,"duration":0.05,"fade":0.005,"amplitude":1}},)"
-      R"({"id":"T","signal":{"type":"ble","address":"AA:BB:CC:DD:EE:FF","tx_power_dbm":-59,"interval_s":0.1}}])";
+  const std::vector<SceneSignal> scene = {
+      {"A", parse_signal(R"({"type":"lfm","f0":2000,"f1":8000,"duration":0.04,"fade":0.005,"amplitude":1})")},
+      {"P", parse_signal(R"({"type":"lfm","f0":18000,"f1":22000,"duration":0.05,"fade":0.005,"amplitude":1})")},
+      {"Q", parse_signal(R"({"type":"lfm","f0":18000,"f1":22000,"duration":0.05,"fade":0.005,"amplitude":1})")},
+      {"T", parse_signal(R"({"type":"ble","address":"AA:BB:CC:DD:EE:FF","tx_power_dbm":-59,"interval_s":0.1})")}};
+  g.scene_emits = scene;
   std::vector<Emission> ems;
   for (int i = 0; i < 6; ++i) ems.push_back({0, 3000.0 + i * 0.3 * kFs + 0.37, 0.5, 1});
   const auto x = render(1, static_cast<std::size_t>(2.2 * kFs), {kTum, amil}, ems, 0.5 * std::sqrt(chirp_power(amil) / 100.0), 5);

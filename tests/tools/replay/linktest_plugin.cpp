@@ -9,7 +9,7 @@
 //     (target "summary", position = [remote detections, local detections, done messages received]),
 //     with `reference` = its device and the mic count of its geometry in std_m (checks HostContext);
 //   - the publisher also reports its own geometry at finish() (target "geometry": speaker position,
-//     confidence 1 when its emits_json holds the scene's lfm entry, mic count in std_m).
+//     confidence 1 when its emits hold the scene's lfm entry, mic count in std_m).
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -58,11 +58,10 @@ class LinkTest final : public Localizer {
       g.target = "geometry";
       g.dims = 3;
       if (geometry_ != nullptr && geometry_->has_speaker) g.position_m = geometry_->speaker_m;
-      const std::string emits = geometry_ != nullptr ? geometry_->emits_json : "";
-      g.confidence = emits.find("\"type\":\"lfm\"") != std::string::npos &&
-                             emits.find("\"f1\":8000") != std::string::npos
-                         ? 1.0f
-                         : 0.0f;
+      bool lfm_8k = false;
+      if (geometry_ != nullptr)
+        for (const SignalSpec& s : geometry_->emits) lfm_8k = lfm_8k || (s.type == "lfm" && s.f1_hz == 8000.0);
+      g.confidence = lfm_8k ? 1.0f : 0.0f;
       g.std_m = mics_;
       out.publish(g);
       return;

@@ -1,9 +1,10 @@
 // The acoustic and radio signals of the scene format (docs: ../shared/docs/scene-format.md, "Signals"),
 // and their generators, bit for bit as the format defines them.
 //
-// One SignalSpec describes one `emits` entry of a scene. The same generator feeds the simulator
-// (which evaluates the continuous-time form at fractional, time-varying delays), the emitter
-// (playback) and the detectors' matched-filter templates, so a template always matches what was sent.
+// One SignalSpec (locus/signal.hpp: the type, its parser and writer) describes one `emits` entry of a
+// scene. The same generator feeds the simulator (which evaluates the continuous-time form at
+// fractional, time-varying delays), the emitter (playback) and the detectors' matched-filter
+// templates, so a template always matches what was sent.
 //
 //   lfm        a·w(t)·sin(2π(f0·t + (f1−f0)·t²/(2·duration)))          w: raised-cosine fade in and out
 //   multitone  a·w(t)·(1/K)·Σ_k sin(2π·f_k·t)                          K tones, equal amplitudes a/K
@@ -21,33 +22,13 @@
 #include <string>
 #include <vector>
 
+#include "locus/signal.hpp"
+
 namespace locus::dsp {
 
-/// One `emits` entry. Fields that do not belong to `type` are left at their defaults.
-struct SignalSpec {
-  std::string type;               ///< "lfm", "gold", "multitone", "ble", or a project-specific type
-  double amplitude = 1.0;         ///< 0..1 (lfm, multitone, gold)
-  // lfm / multitone
-  double f0_hz = 0.0;             ///< lfm start frequency
-  double f1_hz = 0.0;             ///< lfm end frequency
-  double duration_s = 0.0;        ///< lfm, multitone
-  double fade_s = 0.0;            ///< raised-cosine fade in and out (lfm, multitone); 0 = none
-  std::vector<double> tones_hz;   ///< multitone
-  // gold
-  int degree = 0;                 ///< r: code length 2^r − 1
-  int index = 0;                  ///< which code of the family
-  double carrier_hz = 0.0;
-  int chip_samples = 0;           ///< samples per chip at the scene's sample rate
-  std::string chips;              ///< optional '0'/'1' string; authoritative when not empty
-  // ble
-  std::string address;            ///< "AA:BB:CC:DD:EE:FF"
-  double tx_power_dbm = 0.0;      ///< RSSI at 1 m
-  double interval_s = 0.0;        ///< advertising interval
-  // any acoustic entry
-  std::optional<double> sync_delay_s;  ///< delay from the emitter's radio sync message to the sound
-
-  bool acoustic() const noexcept { return type == "lfm" || type == "gold" || type == "multitone"; }
-};
+/// One `emits` entry: the typed signal description of the plugin API (locus/signal.hpp), named here
+/// too because the generators below are its host-side half.
+using SignalSpec = locus::SignalSpec;
 
 /// Raised-cosine fade weight at time t of a signal of `duration_s` with fades of `fade_s` (0..1).
 double fade_weight(double t_s, double duration_s, double fade_s) noexcept;

@@ -2,6 +2,7 @@
 // the "AA:BB:CC:DD:EE:FF" address text they use.
 #pragma once
 
+#include "locus/signal.hpp"
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -14,10 +15,10 @@
 
 namespace locus::scene {
 
-/// Parses "AA:BB:CC:DD:EE:FF" (hex, either case). False when malformed.
-bool parse_ble_address(std::string_view s, std::array<std::uint8_t, 6>& out) noexcept;
-/// "AA:BB:CC:DD:EE:FF" (upper case).
-std::string format_ble_address(const std::array<std::uint8_t, 6>& a);
+/// BLE addresses "AA:BB:CC:DD:EE:FF": one parser and formatter, with the signal description
+/// (locus/signal.hpp), where a ble signal's address is checked.
+using locus::format_ble_address;
+using locus::parse_ble_address;
 
 /// ble.csv: t, address, rssi required; tx_power (empty cell = absent), channel (0 or 37..39; empty =
 /// unknown) optional. Row order is not required by the format and not checked.

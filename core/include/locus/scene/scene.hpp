@@ -117,21 +117,9 @@ void write_scene_yaml(const Scene& scene);
 /// readers deliver the frames present): it is returned as a warning line, "file: byte N: ...".
 std::vector<std::string> validate_scene_streams(const Scene& scene);
 
-/// Parses one signal object (scene-format field names) from YAML or JSON text, e.g. what a plugin hands
-/// to Emitter::schedule: {"type":"lfm","f0":18000,"f1":22000,"duration":0.05,"fade":0.005}. `name`
-/// stands for the source in messages. Throws SceneError with every issue found.
-dsp::SignalSpec parse_signal_text(std::string_view text, const std::string& name = "signal");
-
-/// `signals` as a JSON array with the field names of scene-format.md (the inverse of parse_signal_text
-/// for each element); DeviceGeometry::emits_json is made with it.
-std::string signals_to_json(const std::vector<dsp::SignalSpec>& signals);
-
-/// Every signal of the scene's devices and emitters as a JSON array of {"id": ..., "signal": {...}}
-/// (DeviceGeometry::scene_emits_json), in scene.yaml order.
-std::string scene_emits_to_json(const Scene& scene);
-
-/// Signal types this reader knows ("lfm", "gold", "multitone", "ble").
-bool is_known_signal_type(const std::string& type) noexcept;
+/// Every signal of the scene's devices and emitters with its emitter's id, in scene.yaml order (devices
+/// first): what a host hands its plugins as DeviceGeometry::scene_emits.
+std::vector<SceneSignal> scene_signals(const Scene& scene);
 
 /// load_scene() keeps `emits` entries of unknown type (a project may add types); a consumer that
 /// needs the signals of `ids` (device or emitter ids; empty = every device and emitter) calls this
