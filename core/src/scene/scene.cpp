@@ -125,14 +125,6 @@ class Checker {
   std::string file_;
 };
 
-bool valid_id(const std::string& s) {
-  if (s.empty()) return false;
-  for (char c : s)
-    if (!((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-'))
-      return false;
-  return true;
-}
-
 void parse_emits(Checker& ck, const YAML::Node& n, const std::string& where, std::vector<dsp::SignalSpec>& out,
                  std::vector<std::pair<int, int>>& at) {
   if (!n.IsDefined() || n.IsNull()) return;
