@@ -1,12 +1,12 @@
 // AMIL link messages and arrival pairing: see messages.hpp.
-#include "amil/messages.hpp"
+#include "messages.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <nlohmann/json.hpp>
 
-namespace locus::amil {
+namespace locus::plugins::amil {
 
 namespace {
 
@@ -215,4 +215,4 @@ std::vector<double> match_arrivals(const std::vector<double>& beeps_s, const std
   return best;
 }
 
-}  // namespace locus::amil
+}  // namespace locus::plugins::amil

@@ -1,10 +1,10 @@
 // Shared IMU plugin helpers (see motion_common.hpp).
-#include "motion_common/motion_common.hpp"
+#include "motion_common.hpp"
 
 #include <cmath>
 #include <numbers>
 
-namespace locus::motion {
+namespace locus::plugins::motion_common {
 
 void append_ahrs_params(ParamSchema& schema, double default_gain) {
   schema.push_back(enum_param("ahrs", std::string("mahony"), {"madgwick", "mahony"},
@@ -57,4 +57,4 @@ double wrap_pi(double a) noexcept {
   return a;
 }
 
-}  // namespace locus::motion
+}  // namespace locus::plugins::motion_common

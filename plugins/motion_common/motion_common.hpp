@@ -10,7 +10,7 @@
 #include "locus/events.hpp"
 #include "locus/params.hpp"
 
-namespace locus::motion {
+namespace locus::plugins::motion_common {
 
 /// The AHRS parameters every IMU plugin declares: `ahrs` (madgwick|mahony), `ahrs_gain` (Madgwick
 /// beta in rad/s or Mahony kp in 1/s), `ahrs_ki` (Mahony bias gain), `use_mag`, `max_gap_s`.
@@ -50,4 +50,4 @@ class AttitudeTracker {
 /// Wraps an angle to (-pi, pi].
 double wrap_pi(double a) noexcept;
 
-}  // namespace locus::motion
+}  // namespace locus::plugins::motion_common

@@ -657,7 +657,7 @@ WriteReport SceneSimulator::write(const std::string& out_dir) const {
     }
     if (!sim_.family.empty()) {
       sep();
-      env << "simulator_family: " << sim_.family;
+      env << "family: " << sim_.family;
     }
     sep();
     env << "simulator_seed: " << sim_.seed;
