@@ -23,7 +23,7 @@ namespace fs = std::filesystem;
 
 // ------------------------------------------------------------------------------ fakes
 
-const ParamSchema* plugins::onset::schema() {
+const ParamSchema* onset_schema() {
   static const ParamSchema schema = [] {
     ParamSchema s;
     s.push_back(float_param("threshold_db", -20.0, -60.0, 0.0, "dB", ""));
@@ -599,7 +599,7 @@ TEST_F(ConfigTest, LoadsAFileAndResolvesPluginDirsNextToIt) {
 TEST(ConfigValidateParams, ParsesKeyValueStrings) {
   std::vector<ConfigError> errors;
   const Params p = validate_params(
-      *plugins::onset::schema(), {{"threshold_db", "-10"}, {"gains", "[1, 2.5]"}, {"mode", "slow"}, {"enabled", "false"}, {"order", "4"}},
+      *onset_schema(), {{"threshold_db", "-10"}, {"gains", "[1, 2.5]"}, {"mode", "slow"}, {"enabled", "false"}, {"order", "4"}},
       errors);
   EXPECT_TRUE(errors.empty());
   EXPECT_DOUBLE_EQ(p.get_float("threshold_db"), -10.0);
@@ -608,14 +608,14 @@ TEST(ConfigValidateParams, ParsesKeyValueStrings) {
   EXPECT_FALSE(p.get_bool("enabled"));
   EXPECT_EQ(p.get_int("order"), 4);
   EXPECT_DOUBLE_EQ(p.get_float("window_s"), 0.05);  // default
-  const Params q = validate_params(*plugins::onset::schema(), {{"gains", "3,4"}}, errors);
+  const Params q = validate_params(*onset_schema(), {{"gains", "3,4"}}, errors);
   EXPECT_TRUE(errors.empty());
   EXPECT_EQ(q.get_floats("gains"), (std::vector<double>{3.0, 4.0}));
 }
 
 TEST(ConfigValidateParams, ReportsEveryProblemByKey) {
   std::vector<ConfigError> errors;
-  validate_params(*plugins::onset::schema(),
+  validate_params(*onset_schema(),
                   {{"treshold_db", "1"}, {"order", "x"}, {"gains", "1, 20"}, {"order", "3"}, {"mode", "medium"}}, errors);
   ASSERT_EQ(errors.size(), 5u);
   EXPECT_EQ(errors[0].format(), "treshold_db: unknown key 'treshold_db'; did you mean 'threshold_db'? (known keys: "

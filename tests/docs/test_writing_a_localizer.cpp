@@ -26,16 +26,16 @@ struct Collect final : Publisher {
   std::vector<Event> events;
 };
 
-Registry registry_with_doc_plugins() {
-  Registry r;
+/// The built-ins, then the two plugins of the doc, as builtin_plugins.cpp would list them.
+void register_with_doc_plugins(Registry& r) {
   register_builtins(r);
   r.add_plugin(nearest::descriptor());
   r.add_plugin(plugins::amilcopy::descriptor());
-  return r;
 }
 
 TEST(DocWritingALocalizer, SkeletonAndAmilCopyRegisterBesideTheBuiltIns) {
-  Registry r = registry_with_doc_plugins();
+  Registry r;
+  register_with_doc_plugins(r);
   for (const char* name : {"amil", "amilcopy", "nearest", "chirp"}) ASSERT_NE(r.find_plugin(name), nullptr) << name;
   EXPECT_EQ(r.find_plugin("nearest")->kind, LOCUS_PLUGIN_LOCALIZER);
   EXPECT_EQ(r.find_plugin("amilcopy")->kind, LOCUS_PLUGIN_LOCALIZER);
@@ -44,7 +44,7 @@ TEST(DocWritingALocalizer, SkeletonAndAmilCopyRegisterBesideTheBuiltIns) {
   const ParamSchema& c = *r.find_plugin("amilcopy")->schema();
   ASSERT_EQ(a.size(), c.size());
   for (std::size_t i = 0; i < a.size(); ++i) EXPECT_EQ(a[i].key, c[i].key);
-  EXPECT_EQ(std::get<std::string>(Params::defaults(c).at("topic")), "amilcopy");
+  EXPECT_EQ(Params::defaults(c).get_string("topic"), "amilcopy");
   // Both run side by side: their internals do not clash.
   test::TestHost host;
   for (const char* name : {"amil", "amilcopy"}) {
@@ -70,7 +70,8 @@ TEST(DocWritingALocalizer, MessagesRoundTripAndRefuseMalformedText) {
 }
 
 TEST(DocWritingALocalizer, NearestPlacesTheTagAtTheLoudestAnchorOverALink) {
-  Registry r = registry_with_doc_plugins();
+  Registry r;
+  register_with_doc_plugins(r);
   test::TestHost host;
   InProcessLink link;
   struct Node {
@@ -98,7 +99,7 @@ TEST(DocWritingALocalizer, NearestPlacesTheTagAtTheLoudestAnchorOverALink) {
   Collect out;
   auto heard = [&](Node& n, float snr_db) {
     AudioDetection d;
-    d.device = n.id;
+    d.device.assign(n.id);
     d.snr_db = snr_db;
     n.loc->on_event(d, out);
   };

@@ -56,14 +56,63 @@ TEST(EvalStats, PercentilesInterpolateLinearly) {
   EXPECT_TRUE(std::isnan(stats_of({}).mean));
 }
 
-TEST(EvalFamilies, DetectedFromPluginNameOrFrame) {
-  EXPECT_EQ(detect_family("tum_A", "relative"), "tum");
-  EXPECT_EQ(detect_family("SpyLoc", "world"), "spyloc");
-  EXPECT_EQ(detect_family("my_localizer", "player_start@1.0"), "amil");
-  EXPECT_EQ(detect_family("finder", "observer_start"), "locble");
-  EXPECT_EQ(detect_family("other", "world"), "position");
-  EXPECT_EQ(family_from_name("montage"), "montage");
-  EXPECT_FALSE(family_from_name("gps").has_value());
+TEST(EvalFamilies, EveryMetricIsRegisteredByName) {
+  EXPECT_EQ(metric_names(), (std::vector<std::string>{"amil", "locble", "montage", "position", "spyloc", "tum"}));
+  ASSERT_NE(find_metric("montage"), nullptr);
+  EXPECT_EQ(find_metric("montage")->name, "montage");
+  EXPECT_EQ(find_metric("gps"), nullptr);
+  for (const Metric* m : metrics()) {
+    EXPECT_NE(m->expects, nullptr) << m->name;
+    EXPECT_NE(m->score, nullptr) << m->name;
+    EXPECT_FALSE(m->summary.empty()) << m->name;
+  }
+}
+
+TEST(EvalFamilies, NamedByTheSceneOrMetricNeverByThePluginName) {
+  // Plugins called "tum_A", "SpyLoc", "finder" (frames world, player_start, observer_start) on a scene
+  // of family spyloc are all scored as SpyLoc: neither an instance's name nor its frame picks the
+  // metric (they used to: "tum_A" was TUM by substring, player_start AMIL).
+  TruthData truth;
+  truth.objects = {test::device("A"), test::device("B")};
+  test::place(truth, "A", Vec3(0, 0, 0));
+  test::place(truth, "B", Vec3(3, 0, 0));
+  const auto file = test::parse_lines({estimate_line("tum_A", "", "world", "A", 1.0, {0, 0}),
+                                       estimate_line("SpyLoc", "B", "player_start@1.0", "A", 1.0, {3, 0}),
+                                       estimate_line("finder", "B", "observer_start", "A", 1.0, {3, 0})});
+  truth.family = "spyloc";
+  EvalResult r = evaluate(truth, file, {});
+  ASSERT_EQ(r.groups.size(), 3u);
+  for (const GroupResult& g : r.groups) EXPECT_EQ(g.family, "spyloc") << g.plugin;
+  // --metric wins over the scene.
+  r = evaluate(truth, file, with_metric("position"));
+  for (const GroupResult& g : r.groups) EXPECT_EQ(g.family, "position") << g.plugin;
+  // Neither names one: a clear error, no guess from the names or frames.
+  truth.family.clear();
+  truth.scene_dir = "/scenes/s1";
+  try {
+    evaluate(truth, file, {});
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(e.messages()[0].find("/scenes/s1/scene.yaml: the scene names no family (environment.family) and no --metric"),
+              std::string::npos) << e.messages()[0];
+    EXPECT_NE(e.messages()[0].find("amil, locble, montage, position, spyloc, tum"), std::string::npos) << e.messages()[0];
+  }
+  // A family without a metric, and an unknown --metric, name what is known.
+  truth.family = "gps";
+  try {
+    evaluate(truth, file, {});
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(e.messages()[0].find("environment.family 'gps' has no metric (known: amil,"), std::string::npos) << e.messages()[0];
+  }
+  try {
+    evaluate(truth, file, with_metric("gps"));
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(e.messages()[0].find("--metric gps: no such metric"), std::string::npos) << e.messages()[0];
+  }
+  // Nothing to score needs no metric.
+  EXPECT_NO_THROW(evaluate(truth, test::parse_lines({}), {}));
 }
 
 // ------------------------------------------------------------------------------------ clocks
