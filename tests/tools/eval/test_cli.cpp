@@ -62,6 +62,12 @@ truth:
     std::ofstream f(p);
     f << text;
   }
+  static std::string read(const fs::path& p) {
+    std::ifstream f(p);
+    std::stringstream ss;
+    ss << f.rdbuf();
+    return ss.str();
+  }
 
   /// Estimates: P at true 2, 4, 6 s with 0.3 m error (stamped on P's clock); Q with 0.1 m error.
   std::string good_estimates(bool with_q = true) {
@@ -180,13 +186,7 @@ TEST_F(EvalCli, NothingToScoreMissesEveryThreshold) {
 }
 
 TEST_F(EvalCli, SceneWithoutTruthIsBadInput) {
-  std::string yaml;
-  {
-    std::ifstream f(dir_ / "scene.yaml");
-    std::stringstream ss;
-    ss << f.rdbuf();
-    yaml = ss.str();
-  }
+  std::string yaml = read(dir_ / "scene.yaml");
   write(dir_ / "scene.yaml", yaml.substr(0, yaml.find("truth:")));
   std::string err;
   EXPECT_EQ(run(command(good_estimates()), nullptr, &err), kExitBadInput);
@@ -248,13 +248,7 @@ TEST_F(EvalCli, ReadsTruthStepsAndTruthLosNextToTruthCsv) {
 }
 
 TEST_F(EvalCli, TheScenesFamilyPicksTheMetricWithoutItTheRunIsBadInput) {
-  std::string yaml;
-  {
-    std::ifstream f(dir_ / "scene.yaml");
-    std::stringstream ss;
-    ss << f.rdbuf();
-    yaml = ss.str();
-  }
+  std::string yaml = read(dir_ / "scene.yaml");
   EXPECT_EQ(load_truth(dir_.string()).family, "spyloc");
   // A plugin named like another system is still scored by the scene's family.
   const fs::path path = dir_ / "named.jsonl";
