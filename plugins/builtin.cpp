@@ -1,32 +1,22 @@
-// The built-in plugins, by name. Each plugin folder exposes its descriptor; adding a plugin means
-// adding one line here.
+// The built-ins the host registers: HAL sources, links and the plugins. The plugin list is
+// LOCUS_BUILTIN_PLUGINS in plugins/CMakeLists.txt (one line per plugin folder), from which CMake
+// generates builtin_plugin_descriptors() (builtin_plugins.cpp in the build tree); adding a plugin never
+// touches this file.
+#include <vector>
+
 #include "../hal/builtin.hpp"
 #include "links.hpp"
 #include "locus/registry.hpp"
-#include "chirp/chirp.hpp"
-#include "goldcode/goldcode.hpp"
-#include "multitone/multitone.hpp"
-#include "onset/onset.hpp"
-#include "attitude/attitude.hpp"
-#include "steps/steps.hpp"
-#include "turns/turns.hpp"
-#include "ble_rss/ble_rss.hpp"
-#include "amil/amil.hpp"
 
 namespace locus {
+
+/// Every plugin of LOCUS_BUILTIN_PLUGINS, in its order (generated).
+const std::vector<const locus_plugin_descriptor*>& builtin_plugin_descriptors();
 
 void register_builtins(Registry& registry) {
   hal::register_builtin_sources(registry);
   links::register_builtin_links(registry);
-  registry.add_plugin(onset_descriptor());
-  registry.add_plugin(chirp_descriptor());
-  registry.add_plugin(goldcode_descriptor());
-  registry.add_plugin(multitone_descriptor());
-  registry.add_plugin(attitude_descriptor());
-  registry.add_plugin(steps_descriptor());
-  registry.add_plugin(turns_descriptor());
-  registry.add_plugin(ble_rss_descriptor());
-  registry.add_plugin(amil_descriptor());
+  for (const locus_plugin_descriptor* d : builtin_plugin_descriptors()) registry.add_plugin(d);
 }
 
 }  // namespace locus

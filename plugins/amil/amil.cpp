@@ -1,6 +1,6 @@
 // The `amil` localizer: roles, link plumbing, beep bookkeeping and estimates. See amil.hpp for the
 // design and docs/amil.md for the user's view; the maths lives in tracker.cpp (IMU) and solver.cpp.
-#include "amil/amil.hpp"
+#include "amil.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -12,11 +12,11 @@
 #include <string>
 #include <vector>
 
-#include "amil/messages.hpp"
-#include "amil/solver.hpp"
-#include "amil/tracker.hpp"
+#include "messages.hpp"
+#include "solver.hpp"
+#include "tracker.hpp"
 
-namespace locus {
+namespace locus::plugins::amil {
 
 namespace {
 
@@ -502,7 +502,7 @@ class AmilLocalizer final : public Localizer {
 
 }  // namespace
 
-const ParamSchema& amil_schema() {
+const ParamSchema& schema() {
   static const ParamSchema schema{
       enum_param("role", "auto", {"auto", "player", "listener"},
                  "player or listener; auto: the `player` device, else the device whose scene geometry emits a sound, "
@@ -548,12 +548,12 @@ const ParamSchema& amil_schema() {
   return schema;
 }
 
-const locus_plugin_descriptor* amil_descriptor() {
+const locus_plugin_descriptor* descriptor() {
   static const locus_plugin_descriptor d{
       LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_LOCALIZER, "amil", "1",
       "AMIL: a beeping gesture of one device locates every listening device (paper 004)", 0,
-      [] { return &amil_schema(); }, nullptr, [] { return static_cast<Localizer*>(new AmilLocalizer); }};
+      [] { return &schema(); }, nullptr, [] { return static_cast<Localizer*>(new AmilLocalizer); }};
   return &d;
 }
 
-}  // namespace locus
+}  // namespace locus::plugins::amil

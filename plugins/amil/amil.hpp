@@ -36,11 +36,11 @@
 
 #include "locus/plugin.hpp"
 
-namespace locus {
+namespace locus::plugins::amil {
 
 /// The `amil` localizer plugin (static storage).
-const locus_plugin_descriptor* amil_descriptor();
+const locus_plugin_descriptor* descriptor();
 /// Its parameter schema.
-const ParamSchema& amil_schema();
+const ParamSchema& schema();
 
-}  // namespace locus
+}  // namespace locus::plugins::amil

@@ -1,5 +1,5 @@
 // AMIL link messages and arrival pairing: see messages.hpp.
-#include "amil/messages.hpp"
+#include "messages.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -8,7 +8,7 @@
 
 #include "locus/ids.hpp"
 
-namespace locus::amil {
+namespace locus::plugins::amil {
 
 namespace {
 
@@ -224,4 +224,4 @@ std::vector<double> match_arrivals(const std::vector<double>& beeps_s, const std
   return best;
 }
 
-}  // namespace locus::amil
+}  // namespace locus::plugins::amil

@@ -22,7 +22,7 @@
 #include <string_view>
 #include <vector>
 
-namespace locus::amil {
+namespace locus::plugins::amil {
 
 struct ArrivalMessage {
   std::string listener;
@@ -75,4 +75,4 @@ Decoded decode(std::string_view prefix, std::string_view topic, std::string_view
 std::vector<double> match_arrivals(const std::vector<double>& beeps_s, const std::vector<double>& arrivals_s,
                                    double tolerance_s, int* matched = nullptr);
 
-}  // namespace locus::amil
+}  // namespace locus::plugins::amil

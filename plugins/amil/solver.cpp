@@ -9,7 +9,7 @@
 // d_k = |x − p_k|, which is exact for the model a_k = tau0 + (1 + s)(e_k + d_k/c). For a fixed x the
 // residual is linear in (b, g) (variable projection), which makes a global grid over x cheap; the
 // far-field linearisation d_k ≈ R − u·p_k gives the direction without any search.
-#include "amil/solver.hpp"
+#include "solver.hpp"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -20,7 +20,7 @@
 
 #include "locus/angles.hpp"
 
-namespace locus::amil {
+namespace locus::plugins::amil {
 
 namespace {
 
@@ -1185,9 +1185,9 @@ NetworkSolution solve_network(const std::vector<Beep>& beeps, const std::vector<
   return out;
 }
 
-}  // namespace locus::amil
+}  // namespace locus::plugins::amil
 
-namespace locus::amil {
+namespace locus::plugins::amil {
 
 namespace {
 
@@ -1241,4 +1241,4 @@ double calibrate_session(std::vector<Solution>& listeners, const SolverConfig& c
   return factor;
 }
 
-}  // namespace locus::amil
+}  // namespace locus::plugins::amil

@@ -55,7 +55,7 @@
 #include <string_view>
 #include <vector>
 
-namespace locus::amil {
+namespace locus::plugins::amil {
 
 inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -200,7 +200,7 @@ Bound cramer_rao(const std::vector<Eigen::Vector2d>& positions_m, const std::vec
 std::vector<double> exact_arrivals(const std::vector<Beep>& beeps, const Eigen::Vector2d& listener_m, double skew,
                                    double tau_s, double speed_of_sound_mps);
 
-}  // namespace locus::amil
+}  // namespace locus::plugins::amil
 
 // CHANGELOG (interface between amil-solver and amil-plugin; keep old signatures working)
 // - v1 (amil-solver): first version.

@@ -1,11 +1,11 @@
 // AMIL movement tracking: see tracker.hpp for the algorithm and why it deviates from the paper.
-#include "amil/tracker.hpp"
+#include "tracker.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
-namespace locus::amil {
+namespace locus::plugins::amil {
 
 namespace {
 
@@ -304,4 +304,4 @@ void GestureTracker::close_session() {
   }
 }
 
-}  // namespace locus::amil
+}  // namespace locus::plugins::amil

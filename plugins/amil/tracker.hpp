@@ -53,7 +53,7 @@
 #include <limits>
 #include <vector>
 
-namespace locus::amil {
+namespace locus::plugins::amil {
 
 struct TrackerConfig {
   double bin_s = 0.1;                   ///< motion-detection bin length (s, device-local)
@@ -180,4 +180,4 @@ class GestureTracker {
   bool q_has_last_ = false;
 };
 
-}  // namespace locus::amil
+}  // namespace locus::plugins::amil

@@ -1,12 +1,12 @@
 // The `attitude` plugin (see attitude.hpp).
-#include "attitude/attitude.hpp"
+#include "attitude.hpp"
 
 #include <string>
 
 #include "locus/dsp/ahrs.hpp"
 #include "motion_common/motion_common.hpp"
 
-namespace locus {
+namespace locus::plugins::attitude {
 
 namespace {
 
@@ -55,21 +55,21 @@ class AttitudeDetector final : public Detector {
   Logger* log_ = nullptr;
   DeviceId device_;
   NameTag detector_;
-  motion::AttitudeTracker tracker_;
+  motion_common::AttitudeTracker tracker_;
   double period_s_ = 0.1;
   double next_emit_s_ = 0.0;
   std::uint64_t dropped_ = 0;
 };
 
-const ParamSchema* schema_fn() { return &attitude_schema(); }
+const ParamSchema* schema_fn() { return &schema(); }
 Detector* create() { return new AttitudeDetector(); }
 
 }  // namespace
 
-const ParamSchema& attitude_schema() {
+const ParamSchema& schema() {
   static const ParamSchema schema = [] {
     ParamSchema s;
-    motion::append_ahrs_params(s, 0.5);
+    motion_common::append_ahrs_params(s, 0.5);
     s.push_back(float_param("output_rate_hz", 10.0, 0.0, 1000.0, "Hz",
                                     "Attitude events per second (0 = one per IMU sample)."));
     return s;
@@ -77,7 +77,7 @@ const ParamSchema& attitude_schema() {
   return schema;
 }
 
-const locus_plugin_descriptor* attitude_descriptor() {
+const locus_plugin_descriptor* descriptor() {
   static const locus_plugin_descriptor d{
       LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_DETECTOR, "attitude", "0.1.0",
       "device attitude from the IMU (Madgwick or Mahony; magnetometer when present)", kInputImu, &schema_fn, &create,
@@ -86,4 +86,4 @@ const locus_plugin_descriptor* attitude_descriptor() {
   return &d;
 }
 
-}  // namespace locus
+}  // namespace locus::plugins::attitude

@@ -11,9 +11,9 @@
 
 #include "locus/plugin.hpp"
 
-namespace locus {
+namespace locus::plugins::attitude {
 
-const locus_plugin_descriptor* attitude_descriptor();
-const ParamSchema& attitude_schema();
+const locus_plugin_descriptor* descriptor();
+const ParamSchema& schema();
 
-}  // namespace locus
+}  // namespace locus::plugins::attitude

@@ -1,5 +1,5 @@
 // The `ble_rss` plugin (see ble_rss.hpp).
-#include "ble_rss/ble_rss.hpp"
+#include "ble_rss.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +9,7 @@
 #include "locus/dsp/iir.hpp"
 #include "motion_common/motion_common.hpp"
 
-namespace locus {
+namespace locus::plugins::ble_rss {
 
 namespace {
 
@@ -128,14 +128,14 @@ class BleRssDetector final : public Detector {
   std::uint64_t dropped_tags_ = 0, dropped_events_ = 0, rejected_ = 0;
 };
 
-const ParamSchema* schema_fn() { return &ble_rss_schema(); }
+const ParamSchema* schema_fn() { return &schema(); }
 Detector* create() { return new BleRssDetector(); }
 
 }  // namespace
 
-const ParamSchema& ble_rss_schema() {
+const ParamSchema& schema() {
   static const ParamSchema schema = [] {
-    using motion::append_ahrs_params;
+    using motion_common::append_ahrs_params;
     ParamSchema s;
     s.push_back(int_param("max_tags", std::int64_t{64}, 1, 100000, "", "Tags filtered at once (preallocated)."));
     s.push_back(float_param("grid_rate_hz", 10.0, 0.5, 200.0, "Hz", "Regular grid the RSS is resampled onto (LocBLE adverts: 10 Hz)."));
@@ -153,7 +153,7 @@ const ParamSchema& ble_rss_schema() {
   return schema;
 }
 
-const locus_plugin_descriptor* ble_rss_descriptor() {
+const locus_plugin_descriptor* descriptor() {
   static const locus_plugin_descriptor d{
       LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_DETECTOR, "ble_rss", "0.1.0",
       "per-tag BLE RSS smoothing: 6th-order Butterworth + adaptive Kalman (LocBLE)", kInputBle, &schema_fn, &create,
@@ -162,4 +162,4 @@ const locus_plugin_descriptor* ble_rss_descriptor() {
   return &d;
 }
 
-}  // namespace locus
+}  // namespace locus::plugins::ble_rss

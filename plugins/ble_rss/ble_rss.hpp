@@ -28,9 +28,9 @@
 
 #include "locus/plugin.hpp"
 
-namespace locus {
+namespace locus::plugins::ble_rss {
 
-const locus_plugin_descriptor* ble_rss_descriptor();
-const ParamSchema& ble_rss_schema();
+const locus_plugin_descriptor* descriptor();
+const ParamSchema& schema();
 
-}  // namespace locus
+}  // namespace locus::plugins::ble_rss

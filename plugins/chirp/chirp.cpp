@@ -1,6 +1,6 @@
 // The `chirp` LFM matched-filter detector; algorithm, outputs and gap handling are documented in
 // chirp.hpp, the parameters in docs/detectors.md.
-#include "chirp/chirp.hpp"
+#include "chirp.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -19,7 +19,7 @@
 #include "locus/dsp/prescreen.hpp"
 #include "locus/dsp/signals.hpp"
 
-namespace locus {
+namespace locus::plugins::chirp {
 
 namespace {
 
@@ -556,12 +556,12 @@ class ChirpDetector final : public Detector {
   std::uint64_t windows_skipped_ = 0;
 };
 
-const ParamSchema* schema_fn() { return &chirp_schema(); }
+const ParamSchema* schema_fn() { return &schema(); }
 Detector* create() { return new ChirpDetector(); }
 
 }  // namespace
 
-const ParamSchema& chirp_schema() {
+const ParamSchema& schema() {
   static const ParamSchema schema = [] {
     ParamSchema s = {
         float_param("f0_hz", 2000.0, 1.0, 96000.0, "Hz", "Start frequency of the LFM template (TUM: 2 kHz; AMIL: 18 kHz)."),
@@ -602,7 +602,7 @@ const ParamSchema& chirp_schema() {
   return schema;
 }
 
-const locus_plugin_descriptor* chirp_descriptor() {
+const locus_plugin_descriptor* descriptor() {
   static const locus_plugin_descriptor d{
       LOCUS_PLUGIN_ABI_VERSION,
       LOCUS_PLUGIN_DETECTOR,
@@ -617,4 +617,4 @@ const locus_plugin_descriptor* chirp_descriptor() {
   return &d;
 }
 
-}  // namespace locus
+}  // namespace locus::plugins::chirp

@@ -41,11 +41,11 @@
 
 #include "locus/plugin.hpp"
 
-namespace locus {
+namespace locus::plugins::chirp {
 
 /// The `chirp` detector plugin (static storage).
-const locus_plugin_descriptor* chirp_descriptor();
+const locus_plugin_descriptor* descriptor();
 /// Its parameter schema.
-const ParamSchema& chirp_schema();
+const ParamSchema& schema();
 
-}  // namespace locus
+}  // namespace locus::plugins::chirp

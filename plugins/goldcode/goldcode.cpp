@@ -1,5 +1,5 @@
 // The `goldcode` detector: Montage's multi-user Gold-code receiver; algorithm in goldcode.hpp.
-#include "goldcode/goldcode.hpp"
+#include "goldcode.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -18,7 +18,7 @@
 #include "locus/dsp/signals.hpp"
 #include "locus/fftw_planner.hpp"
 
-namespace locus {
+namespace locus::plugins::goldcode {
 
 namespace {
 
@@ -858,12 +858,12 @@ class GoldcodeDetector final : public Detector {
   std::uint64_t rejected_ = 0;  // candidates rejected by the refined (interference-free) Pearson test
 };
 
-const ParamSchema* schema_fn() { return &goldcode_schema(); }
+const ParamSchema* schema_fn() { return &schema(); }
 Detector* create() { return new GoldcodeDetector(); }
 
 }  // namespace
 
-const ParamSchema& goldcode_schema() {
+const ParamSchema& schema() {
   static const ParamSchema schema = {
       float_param("carrier_hz", 19000.0, 100.0, 100000.0, "Hz", "Carrier of the coded tones (Montage: 19 kHz)."),
       int_param("chip_samples", std::int64_t{40}, 1, 100000, "", "Samples per chip at the stream rate (Montage: 40)."),
@@ -882,7 +882,7 @@ const ParamSchema& goldcode_schema() {
   return schema;
 }
 
-const locus_plugin_descriptor* goldcode_descriptor() {
+const locus_plugin_descriptor* descriptor() {
   static const locus_plugin_descriptor d{
       LOCUS_PLUGIN_ABI_VERSION,
       LOCUS_PLUGIN_DETECTOR,
@@ -897,4 +897,4 @@ const locus_plugin_descriptor* goldcode_descriptor() {
   return &d;
 }
 
-}  // namespace locus
+}  // namespace locus::plugins::goldcode

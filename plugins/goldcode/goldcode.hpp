@@ -41,9 +41,9 @@
 
 #include "locus/plugin.hpp"
 
-namespace locus {
+namespace locus::plugins::goldcode {
 
-const locus_plugin_descriptor* goldcode_descriptor();
-const ParamSchema& goldcode_schema();
+const locus_plugin_descriptor* descriptor();
+const ParamSchema& schema();
 
-}  // namespace locus
+}  // namespace locus::plugins::goldcode

@@ -1,10 +1,10 @@
 // Shared IMU plugin helpers (see motion_common.hpp).
-#include "motion_common/motion_common.hpp"
+#include "motion_common.hpp"
 
 #include <cmath>
 #include <numbers>
 
-namespace locus::motion {
+namespace locus::plugins::motion_common {
 
 void append_ahrs_params(ParamSchema& schema, double default_gain) {
   schema.push_back(enum_param("ahrs", std::string("mahony"), {"madgwick", "mahony"},
@@ -51,4 +51,4 @@ bool AttitudeTracker::update(const ImuSample& s) noexcept {
   return true;
 }
 
-}  // namespace locus::motion
+}  // namespace locus::plugins::motion_common

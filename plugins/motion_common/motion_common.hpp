@@ -10,7 +10,7 @@
 #include "locus/events.hpp"
 #include "locus/params.hpp"
 
-namespace locus::motion {
+namespace locus::plugins::motion_common {
 
 /// The AHRS parameters every IMU plugin declares: `ahrs` (madgwick|mahony), `ahrs_gain` (Madgwick
 /// beta in rad/s or Mahony kp in 1/s), `ahrs_ki` (Mahony bias gain), `use_mag`, `max_gap_s`.
@@ -47,4 +47,4 @@ class AttitudeTracker {
   std::uint64_t rejected_ = 0, gaps_ = 0;
 };
 
-}  // namespace locus::motion
+}  // namespace locus::plugins::motion_common

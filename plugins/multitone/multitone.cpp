@@ -1,5 +1,5 @@
 // The `multitone` detector: SpyLoc's beep receiver; algorithm in multitone.hpp.
-#include "multitone/multitone.hpp"
+#include "multitone.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -16,7 +16,7 @@
 #include "locus/dsp/iir.hpp"
 #include "locus/dsp/signals.hpp"
 
-namespace locus {
+namespace locus::plugins::multitone {
 
 std::array<float, 6> decay_times(std::span<const double> e, std::size_t peak_from, std::size_t peak_to,
                                  std::size_t end_index, double fs) noexcept {
@@ -450,12 +450,12 @@ class MultitoneDetector final : public Detector {
   std::uint64_t dropped_ = 0;
 };
 
-const ParamSchema* schema_fn() { return &multitone_schema(); }
+const ParamSchema* schema_fn() { return &schema(); }
 Detector* create() { return new MultitoneDetector(); }
 
 }  // namespace
 
-const ParamSchema& multitone_schema() {
+const ParamSchema& schema() {
   static const ParamSchema schema = {
       float_list_param("tones_hz",
                        std::vector<double>{18000, 18250, 18500, 18750, 19000, 19250, 19500, 19750, 20000, 20250},
@@ -475,7 +475,7 @@ const ParamSchema& multitone_schema() {
   return schema;
 }
 
-const locus_plugin_descriptor* multitone_descriptor() {
+const locus_plugin_descriptor* descriptor() {
   static const locus_plugin_descriptor d{
       LOCUS_PLUGIN_ABI_VERSION,
       LOCUS_PLUGIN_DETECTOR,
@@ -490,4 +490,4 @@ const locus_plugin_descriptor* multitone_descriptor() {
   return &d;
 }
 
-}  // namespace locus
+}  // namespace locus::plugins::multitone

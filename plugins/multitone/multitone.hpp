@@ -37,10 +37,10 @@
 
 #include "locus/plugin.hpp"
 
-namespace locus {
+namespace locus::plugins::multitone {
 
-const locus_plugin_descriptor* multitone_descriptor();
-const ParamSchema& multitone_schema();
+const locus_plugin_descriptor* descriptor();
+const ParamSchema& schema();
 
 /// The decay-feature computation of step 4 on a smoothed energy envelope `energy` (linear power):
 /// reference = max of energy[peak_from, peak_to), times counted from index `end_index`, in samples of
@@ -48,4 +48,4 @@ const ParamSchema& multitone_schema();
 std::array<float, 6> decay_times(std::span<const double> energy, std::size_t peak_from, std::size_t peak_to,
                                  std::size_t end_index, double sample_rate_hz) noexcept;
 
-}  // namespace locus
+}  // namespace locus::plugins::multitone

@@ -1,5 +1,5 @@
 // The `onset` energy-onset detector; the algorithm and its bias are documented in onset.hpp.
-#include "onset/onset.hpp"
+#include "onset.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-namespace locus {
+namespace locus::plugins::onset {
 
 namespace {
 
@@ -208,12 +208,12 @@ class OnsetDetector final : public Detector {
   std::uint64_t dropped_ = 0;
 };
 
-const ParamSchema* schema_fn() { return &onset_schema(); }
+const ParamSchema* schema_fn() { return &schema(); }
 Detector* create() { return new OnsetDetector(); }
 
 }  // namespace
 
-const ParamSchema& onset_schema() {
+const ParamSchema& schema() {
   static const ParamSchema schema = {
       float_param("threshold_db", 12.0, 1.0, 80.0, "dB", "Trigger when the short-term energy exceeds the noise floor by this."),
       float_param("window_s", 0.002, 1e-5, 1.0, "s", "Time constant of the one-pole short-term energy."),
@@ -232,7 +232,7 @@ const ParamSchema& onset_schema() {
   return schema;
 }
 
-const locus_plugin_descriptor* onset_descriptor() {
+const locus_plugin_descriptor* descriptor() {
   static const locus_plugin_descriptor d{
       LOCUS_PLUGIN_ABI_VERSION,
       LOCUS_PLUGIN_DETECTOR,
@@ -247,4 +247,4 @@ const locus_plugin_descriptor* onset_descriptor() {
   return &d;
 }
 
-}  // namespace locus
+}  // namespace locus::plugins::onset

@@ -35,11 +35,11 @@
 
 #include "locus/plugin.hpp"
 
-namespace locus {
+namespace locus::plugins::onset {
 
 /// The `onset` detector plugin (static storage).
-const locus_plugin_descriptor* onset_descriptor();
+const locus_plugin_descriptor* descriptor();
 /// Its parameter schema.
-const ParamSchema& onset_schema();
+const ParamSchema& schema();
 
-}  // namespace locus
+}  // namespace locus::plugins::onset

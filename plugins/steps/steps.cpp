@@ -1,5 +1,5 @@
 // The `steps` plugin (algorithms and their sources in steps.hpp).
-#include "steps/steps.hpp"
+#include "steps.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -14,7 +14,7 @@
 #include "locus/dsp/iir.hpp"
 #include "motion_common/motion_common.hpp"
 
-namespace locus {
+namespace locus::plugins::steps {
 
 namespace {
 
@@ -356,7 +356,7 @@ class StepsDetector final : public Detector {
   Logger* log_ = nullptr;
   DeviceId device_;
   NameTag detector_;
-  motion::AttitudeTracker tracker_;
+  motion_common::AttitudeTracker tracker_;
   bool spyloc_ = false, bounce_ = true;
   double rate_ = 100.0, dt_ = 0.01;
   dsp::SosFilter lp_;
@@ -388,14 +388,14 @@ class StepsDetector final : public Detector {
   std::uint64_t dropped_ = 0;
 };
 
-const ParamSchema* schema_fn() { return &steps_schema(); }
+const ParamSchema* schema_fn() { return &schema(); }
 Detector* create() { return new StepsDetector(); }
 
 }  // namespace
 
-const ParamSchema& steps_schema() {
+const ParamSchema& schema() {
   static const ParamSchema schema = [] {
-    using motion::append_ahrs_params;
+    using motion_common::append_ahrs_params;
     ParamSchema s;
     s.push_back(enum_param("mode", std::string("montage"), {"montage", "spyloc"},
                            "Step detector: Montage peak/valley crossing or SpyLoc adaptive-window DTW."));
@@ -434,7 +434,7 @@ const ParamSchema& steps_schema() {
   return schema;
 }
 
-const locus_plugin_descriptor* steps_descriptor() {
+const locus_plugin_descriptor* descriptor() {
   static const locus_plugin_descriptor d{
       LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_DETECTOR, "steps", "0.1.0",
       "walking steps and stride length from the IMU (Montage peak/valley or SpyLoc DTW)", kInputImu, &schema_fn,
@@ -443,4 +443,4 @@ const locus_plugin_descriptor* steps_descriptor() {
   return &d;
 }
 
-}  // namespace locus
+}  // namespace locus::plugins::steps

@@ -40,9 +40,9 @@
 
 #include "locus/plugin.hpp"
 
-namespace locus {
+namespace locus::plugins::steps {
 
-const locus_plugin_descriptor* steps_descriptor();
-const ParamSchema& steps_schema();
+const locus_plugin_descriptor* descriptor();
+const ParamSchema& schema();
 
-}  // namespace locus
+}  // namespace locus::plugins::steps

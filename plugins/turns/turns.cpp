@@ -1,5 +1,5 @@
 // The `turns` plugin (see turns.hpp).
-#include "turns/turns.hpp"
+#include "turns.hpp"
 
 #include <cmath>
 #include <string>
@@ -7,7 +7,7 @@
 #include "locus/dsp/ahrs.hpp"
 #include "motion_common/motion_common.hpp"
 
-namespace locus {
+namespace locus::plugins::turns {
 
 namespace {
 
@@ -104,7 +104,7 @@ class TurnsDetector final : public Detector {
   Logger* log_ = nullptr;
   DeviceId device_;
   NameTag detector_;
-  motion::AttitudeTracker tracker_;
+  motion_common::AttitudeTracker tracker_;
   double smoothing_s_ = 0.3, start_rate_ = 0.5, end_rate_ = 0.15, hold_s_ = 0.2, min_turn_ = 0.5, max_turn_s_ = 5.0;
   double smoothed_ = 0.0, acc_ = 0.0, acc_end_ = 0.0;
   double calm_t_ = 0.0, start_t_ = 0.0, quiet_t_ = 0.0;
@@ -113,14 +113,14 @@ class TurnsDetector final : public Detector {
   std::uint64_t dropped_ = 0;
 };
 
-const ParamSchema* schema_fn() { return &turns_schema(); }
+const ParamSchema* schema_fn() { return &schema(); }
 Detector* create() { return new TurnsDetector(); }
 
 }  // namespace
 
-const ParamSchema& turns_schema() {
+const ParamSchema& schema() {
   static const ParamSchema schema = [] {
-    using motion::append_ahrs_params;
+    using motion_common::append_ahrs_params;
     ParamSchema s;
     s.push_back(float_param("smoothing_s", 0.3, 0.0001, 10.0, "s", "Time constant of the yaw-rate low-pass (step sway)."));
     s.push_back(float_param("start_rate_radps", 0.5, 0.01, 20.0, "rad/s", "A turn starts above this smoothed yaw rate."));
@@ -134,7 +134,7 @@ const ParamSchema& turns_schema() {
   return schema;
 }
 
-const locus_plugin_descriptor* turns_descriptor() {
+const locus_plugin_descriptor* descriptor() {
   static const locus_plugin_descriptor d{
       LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_DETECTOR, "turns", "0.1.0",
       "walking turns from the world-frame yaw rate (LocBLE gyro bump), as Attitude events", kInputImu, &schema_fn,
@@ -143,4 +143,4 @@ const locus_plugin_descriptor* turns_descriptor() {
   return &d;
 }
 
-}  // namespace locus
+}  // namespace locus::plugins::turns

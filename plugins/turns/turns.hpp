@@ -19,9 +19,9 @@
 
 #include "locus/plugin.hpp"
 
-namespace locus {
+namespace locus::plugins::turns {
 
-const locus_plugin_descriptor* turns_descriptor();
-const ParamSchema& turns_schema();
+const locus_plugin_descriptor* descriptor();
+const ParamSchema& schema();
 
-}  // namespace locus
+}  // namespace locus::plugins::turns

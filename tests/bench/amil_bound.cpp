@@ -27,7 +27,7 @@
 
 #include "amil/solver.hpp"
 
-namespace amil = locus::amil;
+namespace amil = locus::plugins::amil;
 
 namespace {
 

@@ -19,7 +19,7 @@
 
 #include "amil/solver.hpp"
 
-namespace amil = locus::amil;
+namespace amil = locus::plugins::amil;
 using nlohmann::json;
 
 namespace {

@@ -30,6 +30,7 @@
 namespace {
 
 using namespace locus;
+namespace amil = locus::plugins::amil;
 
 constexpr double kFs = 44100.0;
 constexpr double kSeconds = 7.0;
@@ -89,8 +90,8 @@ FftwPlanner& planner() {
 /// One device's chirp detector, configured once (as a node does at start-up: FFTW plans, templates),
 /// then fed recording after recording as one continuous stream.
 struct DeviceDetector {
-  explicit DeviceDetector(test::TestHost& host) : det(chirp_descriptor()->create_detector()) {
-    Params p = Params::defaults(chirp_schema());
+  explicit DeviceDetector(test::TestHost& host) : det(plugins::chirp::descriptor()->create_detector()) {
+    Params p = Params::defaults(plugins::chirp::schema());
     p.set("f0_hz", 18000.0);
     p.set("f1_hz", 22000.0);
     p.set("duration_s", 0.05);

@@ -85,8 +85,8 @@ void run_detector(benchmark::State& state, std::uint32_t channels, std::size_t t
                   std::int64_t fft_size = 0) {
   const std::vector<float>& x = audio();
   test::TestHost host;
-  std::unique_ptr<Detector> det(chirp_descriptor()->create_detector());
-  Params p = Params::defaults(chirp_schema());
+  std::unique_ptr<Detector> det(plugins::chirp::descriptor()->create_detector());
+  Params p = Params::defaults(plugins::chirp::schema());
   p.set("prescreen", prescreen);
   p.set("fft_size", fft_size);
   if (templates > 1) {

@@ -80,8 +80,8 @@ void run(benchmark::State& state, const locus_plugin_descriptor* desc, const loc
   state.counters["events_per_pass"] = static_cast<double>(events) / static_cast<double>(state.iterations());
 }
 
-void BM_Goldcode4Codes(benchmark::State& s) { run(s, locus::goldcode_descriptor(), locus::goldcode_schema(), true); }
-void BM_Multitone10Tones(benchmark::State& s) { run(s, locus::multitone_descriptor(), locus::multitone_schema(), false); }
+void BM_Goldcode4Codes(benchmark::State& s) { run(s, locus::plugins::goldcode::descriptor(), locus::plugins::goldcode::schema(), true); }
+void BM_Multitone10Tones(benchmark::State& s) { run(s, locus::plugins::multitone::descriptor(), locus::plugins::multitone::schema(), false); }
 
 BENCHMARK(BM_Goldcode4Codes)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK(BM_Multitone10Tones)->Unit(benchmark::kMillisecond)->MinTime(2.0);

@@ -36,8 +36,8 @@ std::vector<std::vector<float>> render_planar(const SynthConfig& c) {
 struct Harness {
   explicit Harness(std::uint32_t channels, std::uint32_t max_block = 8192,
                    std::initializer_list<std::pair<std::string, ParamValue>> overrides = {}) {
-    det.reset(onset_descriptor()->create_detector());
-    Params p = Params::defaults(onset_schema());
+    det.reset(plugins::onset::descriptor()->create_detector());
+    Params p = Params::defaults(plugins::onset::schema());
     for (const auto& [k, v] : overrides) p.set(k, v);
     StreamInfo info;
     info.device = "A";
@@ -328,11 +328,11 @@ TEST(OnsetDetector, LostBeforeResetsHoldOffAndHistory) {
 TEST(OnsetDetector, FullEventQueueIsCountedAndReportedAtFinish) {
   const std::vector<float> x = noise_with_bursts(60000, {20000, 40000});
   test::TestHost host;
-  std::unique_ptr<Detector> det(onset_descriptor()->create_detector());
+  std::unique_ptr<Detector> det(plugins::onset::descriptor()->create_detector());
   StreamInfo info;
   info.channels = 1;
   HostContext ctx = host.context("onset_a", "A");
-  det->configure(info, Params::defaults(onset_schema()), ctx);
+  det->configure(info, Params::defaults(plugins::onset::schema()), ctx);
   test::CollectingSink sink(1);
   test::feed_planar(*det, {x}, 256, sink);
   det->finish(sink);
@@ -342,15 +342,15 @@ TEST(OnsetDetector, FullEventQueueIsCountedAndReportedAtFinish) {
 }
 
 TEST(OnsetDetector, DescriptorAndRegistration) {
-  const locus_plugin_descriptor* d = onset_descriptor();
+  const locus_plugin_descriptor* d = plugins::onset::descriptor();
   ASSERT_NE(d, nullptr);
   EXPECT_EQ(d->abi_version, LOCUS_PLUGIN_ABI_VERSION);
   EXPECT_EQ(d->kind, LOCUS_PLUGIN_DETECTOR);
   EXPECT_STREQ(d->name, "onset");
   EXPECT_EQ(d->inputs, static_cast<std::uint32_t>(kInputAudio));
-  EXPECT_EQ(d->schema(), &onset_schema());
+  EXPECT_EQ(d->schema(), &plugins::onset::schema());
   EXPECT_EQ(d->create_localizer, nullptr);
-  for (const ParamSpec& s : onset_schema()) EXPECT_FALSE(s.doc.empty()) << s.key;
+  for (const ParamSpec& s : plugins::onset::schema()) EXPECT_FALSE(s.doc.empty()) << s.key;
 
   Registry registry;
   register_builtins(registry);
@@ -360,8 +360,8 @@ TEST(OnsetDetector, DescriptorAndRegistration) {
 
 TEST(OnsetDetector, RejectsAFloorFasterThanTheWindow) {
   test::TestHost host;
-  std::unique_ptr<Detector> det(onset_descriptor()->create_detector());
-  Params p = Params::defaults(onset_schema());
+  std::unique_ptr<Detector> det(plugins::onset::descriptor()->create_detector());
+  Params p = Params::defaults(plugins::onset::schema());
   p.set("floor_time_constant_s", 0.001);
   HostContext ctx = host.context();
   EXPECT_THROW(det->configure(StreamInfo{}, p, ctx), std::runtime_error);

@@ -6,6 +6,7 @@
 #include <memory>
 #include <optional>
 
+#include "locus/eval/metric.hpp"
 #include "locus/eval/report.hpp"
 
 namespace locus::app {
@@ -21,8 +22,9 @@ Subcommand add_eval_command(CLI::App& cli) {
                                              "exit 0 all thresholds hold, 4 one missed, 2 bad input, 1 failure");
   sub->add_option("scene", st->cmd.scene_dir, "scene directory (scene.yaml with a truth section)")->required();
   sub->add_option("estimates", st->cmd.estimates_path, "JSON-lines file with estimate/step events ('-' = stdin)")->required();
-  sub->add_option("--metric", st->metric, "metric family for every plugin (default: detected from the plugin name / frame)")
-      ->check(CLI::IsMember({"position", "tum", "amil", "montage", "spyloc", "locble"}));
+  std::string metric_help = "metric for every plugin (default: the scene's environment.family):";
+  for (const eval::Metric* m : eval::metrics()) metric_help += "\n  " + std::string(m->name) + ": " + std::string(m->summary);
+  sub->add_option("--metric", st->metric, metric_help)->check(CLI::IsMember(eval::metric_names()));
   sub->add_option("--plugin", st->cmd.options.plugins, "score only this localizer instance (repeatable)");
   sub->add_flag("--json", st->cmd.json, "write the results as JSON instead of the table");
   sub->add_option("--json-output", st->cmd.json_output, "also write the JSON results to this file");
@@ -38,7 +40,7 @@ Subcommand add_eval_command(CLI::App& cli) {
   Subcommand out;
   out.cmd = sub;
   out.run = [st]() {
-    if (!st->metric.empty()) st->cmd.options.metric = eval::family_from_name(st->metric);
+    if (!st->metric.empty()) st->cmd.options.metric = st->metric;
     st->cmd.thresholds.clear();
     for (const auto& spec : eval::threshold_specs()) {
       const auto& v = st->limits[spec.option];

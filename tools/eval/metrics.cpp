@@ -1,64 +1,26 @@
-// The metric families. Each estimate is first "scored" the same way (target resolved, its time
-// converted to true time through the truth clock, truth mapped into the estimate's frame or the
-// estimate aligned to truth for relative frames); the families then aggregate differently.
+// The scoring core shared by every metric (locus/eval/metric.hpp): each estimate is first "scored"
+// the same way (target resolved, its time converted to true time through the truth clock, truth
+// mapped into the estimate's frame or the estimate aligned to truth for relative frames); the metric
+// named by --metric or the scene's environment.family (tools/eval/metrics/<name>.cpp) then
+// aggregates; the core adds the counts and warnings every metric shares.
 #include "locus/eval/metrics.hpp"
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <limits>
 #include <map>
-#include <numbers>
 #include <set>
 
 #include "locus/angles.hpp"
 #include "locus/eval/error.hpp"
 #include "locus/eval/frames.hpp"
+#include "locus/eval/metric.hpp"
 
 namespace locus::eval {
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 using ojson = nlohmann::ordered_json;
-
-ojson num(double v) { return std::isfinite(v) ? ojson(v) : ojson(nullptr); }
-
-std::string lower(std::string_view s) {
-  std::string out(s);
-  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return out;
-}
-
-double mean_of(const std::vector<double>& v) {
-  if (v.empty()) return kNaN;
-  double s = 0;
-  for (double x : v) s += x;
-  return s / static_cast<double>(v.size());
-}
-
-double median_of(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return percentile_sorted(v, 0.5);
-}
-
-double norm_dims(const Vec3& v, int dims) { return dims >= 3 ? v.norm() : v.head<2>().norm(); }
-
-/// One estimate after target resolution, clock conversion and frame mapping.
-struct Scored {
-  const EstimateRecord* e = nullptr;
-  std::string id;              ///< resolved truth id ("" = unknown target)
-  FrameSpec frame;
-  double t_true_s = kNaN;
-  bool extrapolated = false;
-  Vec3 truth_world = Vec3::Zero();
-  Vec3 truth_frame = Vec3::Zero();  ///< truth in the estimate's frame (aligned frames: world)
-  Vec3 est = Vec3::Zero();          ///< estimate (aligned frames: after alignment, in world)
-  bool placed = false;              ///< truth_frame is valid (known frame placed from truth)
-  bool positioned = false;          ///< est and truth_frame are comparable
-  std::string unscored;             ///< reason it is not scored ("" = scored or pending)
-  double error_m = kNaN;
-};
 
 struct Group {
   std::string plugin;
@@ -74,28 +36,29 @@ struct ReasonLog {
   }
 };
 
-class GroupScorer {
+class GroupScorer final : public GroupContext {
  public:
-  GroupScorer(const TruthData& truth, const EstimatesFile& file, const EvalOptions& options, const Group& group, Family family)
-      : truth_(truth), file_(file), options_(options), group_(group) {
-    result_.family = family;
+  GroupScorer(const TruthData& truth, const EstimatesFile& file, const EvalOptions& options, const Group& group, const Metric& metric)
+      : truth_(truth), file_(file), options_(options), group_(group), metric_(metric) {
+    result_.family = std::string(metric.name);
     result_.plugin = group.plugin;
   }
 
   GroupResult run() {
     score_all();
     align_relative();
-    switch (result_.family) {
-      case Family::Tum: tum(); break;
-      case Family::Amil: amil(); break;
-      case Family::Locble: position_family(/*final_only=*/true); break;
-      case Family::Montage: position_family(false); montage_steps(); break;
-      case Family::Spyloc: position_family(false); spyloc_extras(); break;
-      case Family::Position: position_family(false); break;
-    }
+    metric_.score(*this);
     finish();
     return std::move(result_);
   }
+
+  // ---------------------------------------------------------------------------- GroupContext
+  const TruthData& truth() const override { return truth_; }
+  const EstimatesFile& file() const override { return file_; }
+  const EvalOptions& options() const override { return options_; }
+  const Metric& metric() const override { return metric_; }
+  const std::vector<Scored>& scored() const override { return scored_; }
+  GroupResult& result() override { return result_; }
 
  private:
   // ---------------------------------------------------------------------------- common scoring
@@ -200,7 +163,7 @@ class GroupScorer {
   }
 
   // ---------------------------------------------------------------------------- targets
-  /// Targets a family expects to be located (ids with truth), scene order.
+  /// Targets the metric expects to be located (ids with truth), scene order.
   std::vector<std::string> expected_targets() const {
     std::set<std::string> refs(result_.references.begin(), result_.references.end());
     std::set<std::string> estimated;
@@ -209,22 +172,15 @@ class GroupScorer {
     std::vector<std::string> out;
     for (const TruthObject& o : truth_.objects) {
       if (!truth_.has_truth(o.id)) continue;
-      bool want = false;
-      switch (result_.family) {
-        case Family::Tum: want = o.is_device && o.has_audio && (!refs.count(o.id) || estimated.count(o.id)); break;
-        case Family::Amil: want = o.is_device && o.has_audio && !refs.count(o.id); break;
-        case Family::Locble: want = !o.ble_addresses.empty() && !refs.count(o.id); break;
-        case Family::Spyloc: want = o.is_device && o.has_audio && !o.anchor_m && !refs.count(o.id); break;
-        case Family::Montage: want = o.is_device && o.has_imu; break;
-        case Family::Position: want = !o.anchor_m && truth_.tracks.count(o.id) && (!refs.count(o.id) || estimated.count(o.id)); break;
-      }
-      if (want) out.push_back(o.id);
+      const TargetQuery q{o, refs.count(o.id) > 0, estimated.count(o.id) > 0, truth_.tracks.count(o.id) > 0};
+      if (metric_.expects(q)) out.push_back(o.id);
     }
     return out;
   }
 
-  /// Rows in order: expected targets, then other estimated targets, then unknown targets.
-  std::vector<std::string> row_order() const {
+  /// Rows in order: expected targets, then other estimated targets (unknown targets: finish()).
+ public:
+  std::vector<std::string> row_order() override {
     std::vector<std::string> order = expected_targets();
     std::set<std::string> seen(order.begin(), order.end());
     for (const auto& s : scored_)
@@ -232,14 +188,14 @@ class GroupScorer {
     return order;
   }
 
-  std::vector<const Scored*> of_target(const std::string& id) const {
+  std::vector<const Scored*> of_target(const std::string& id) const override {
     std::vector<const Scored*> out;
     for (const auto& s : scored_)
       if (s.id == id) out.push_back(&s);
     return out;
   }
 
-  ojson row_start(const std::string& id, const std::vector<const Scored*>& members, bool located) {
+  ojson row_start(const std::string& id, const std::vector<const Scored*>& members, bool located) override {
     ojson row = ojson::object();
     row["target"] = id;
     const bool expected = expected_set().count(id) > 0;
@@ -257,11 +213,12 @@ class GroupScorer {
     return row;
   }
 
-  /// Scored: a position error exists, or (AMIL) a direction in a placed frame.
-  bool counts(const Scored& s) const {
+  bool counts(const Scored& s) const override {
     if (s.positioned) return true;
-    return result_.family == Family::Amil && s.placed && std::isfinite(s.e->direction_rad);
+    return metric_.direction_only_counts && s.placed && std::isfinite(s.e->direction_rad);
   }
+
+ private:
 
   const std::set<std::string>& expected_set() {
     if (!expected_cache_) {
@@ -269,309 +226,6 @@ class GroupScorer {
       expected_cache_ = std::set<std::string>(v.begin(), v.end());
     }
     return *expected_cache_;
-  }
-
-  // ---------------------------------------------------------------------------- position families
-  void position_family(bool final_only) {
-    std::vector<double> all, finals;
-    for (const std::string& id : row_order()) {
-      auto members = of_target(id);
-      std::vector<double> errors;
-      const Scored* last = nullptr;
-      for (const Scored* s : members) {
-        if (!s->positioned) continue;
-        errors.push_back(s->error_m);
-        if (!last || s->e->t_s >= last->e->t_s) last = s;
-      }
-      ojson row = row_start(id, members, !errors.empty());
-      const Stats st = stats_of(errors);
-      row["mean_error_m"] = num(st.mean);
-      row["median_error_m"] = num(st.median);
-      row["p90_error_m"] = num(st.p90);
-      row["max_error_m"] = num(st.max);
-      row["final_error_m"] = num(last ? last->error_m : kNaN);
-      if (result_.family == Family::Montage) {
-        double path = kNaN, pct = kNaN;
-        auto track = truth_.tracks.find(id);
-        if (last && track != truth_.tracks.end()) {
-          double t0 = last->t_true_s;
-          for (const Scored* s : members)
-            if (s->positioned) t0 = std::min(t0, s->t_true_s);
-          const auto& tr = track->second;
-          path = tr.path_length_m(std::min(t0, tr.t_begin_s()), last->t_true_s, true);
-          if (path > 0) pct = 100.0 * st.mean / path;
-        }
-        row["path_length_m"] = num(path);
-        row["mean_error_pct_of_path"] = num(pct);
-        if (std::isfinite(pct)) path_pcts_.push_back(pct);
-      }
-      if (last) finals.push_back(last->error_m);
-      all.insert(all.end(), errors.begin(), errors.end());
-      result_.targets.push_back(std::move(row));
-    }
-    const Stats st = stats_of(final_only ? finals : all);
-    auto& sum = result_.summary;
-    if (final_only) sum["all_estimates_mean_error_m"] = num(mean_of(all));
-    sum["mean_error_m"] = num(st.mean);
-    sum["median_error_m"] = num(st.median);
-    sum["p80_error_m"] = num(st.p80);
-    sum["p90_error_m"] = num(st.p90);
-    sum["max_error_m"] = num(st.max);
-    sum["rms_error_m"] = num(st.rms);
-    if (result_.family == Family::Montage) sum["mean_error_pct_of_path"] = num(mean_of(path_pcts_));
-    position_errors_ = std::move(all);
-  }
-
-  void spyloc_extras() {
-    std::vector<double> sorted = position_errors_;
-    std::sort(sorted.begin(), sorted.end());
-    ojson cdf = ojson::array();
-    for (int k = 1; k <= 20; ++k) {
-      const double q = k / 20.0;
-      cdf.push_back({{"fraction", q}, {"error_m", num(percentile_sorted(sorted, q))}});
-    }
-    result_.details["cdf"] = cdf;
-    // LoS/NLoS: the estimate's own `los` flag, else the truth of the most recent beep before it.
-    std::vector<double> los, nlos;
-    std::size_t flagged = 0, from_truth = 0;
-    for (const auto& s : scored_) {
-      if (!s.positioned) continue;
-      std::optional<bool> flag = s.e->los;
-      if (!flag && truth_.los && !truth_.los->empty()) {
-        const auto& beeps = *truth_.los;
-        auto it = std::upper_bound(beeps.begin(), beeps.end(), s.t_true_s,
-                                   [](double t, const TruthLos& b) { return t < b.t_true_s; });
-        if (it != beeps.begin()) {
-          flag = std::prev(it)->los;
-          ++from_truth;
-        }
-      }
-      if (!flag) continue;
-      ++flagged;
-      (*flag ? los : nlos).push_back(s.error_m);
-    }
-    if (flagged == 0) {
-      result_.details["los_nlos"] = "no estimate carries a `los` flag and the scene has no truth_los.csv";
-      return;
-    }
-    result_.details["los_source"] = from_truth == 0 ? "estimates" : from_truth == flagged ? "truth_los.csv (most recent beep)" : "mixed";
-    auto& sum = result_.summary;
-    for (auto [name, v] : {std::pair<const char*, std::vector<double>*>{"los", &los}, {"nlos", &nlos}}) {
-      const Stats st = stats_of(*v);
-      sum[std::string(name) + "_estimates"] = st.n;
-      sum[std::string(name) + "_median_error_m"] = num(st.median);
-      sum[std::string(name) + "_p80_error_m"] = num(st.p80);
-      sum[std::string(name) + "_p90_error_m"] = num(st.p90);
-    }
-  }
-
-  // ---------------------------------------------------------------------------- Montage strides
-  void montage_steps() {
-    auto& sum = result_.summary;
-    if (!truth_.steps) {
-      result_.warnings.push_back("the scene has no truth_steps.csv: stride error not scored");
-      sum["mean_stride_error_m"] = nullptr;
-      return;
-    }
-    std::map<std::string, std::vector<double>> true_t;  // per device, sorted
-    std::map<std::string, std::vector<double>> true_stride;
-    {
-      std::map<std::string, std::vector<std::pair<double, double>>> by;
-      for (const TruthStep& s : *truth_.steps) by[s.id].emplace_back(s.t_true_s, s.stride_m);
-      for (auto& [id, v] : by) {
-        std::sort(v.begin(), v.end());
-        for (auto& [t, l] : v) {
-          true_t[id].push_back(t);
-          true_stride[id].push_back(l);
-        }
-      }
-    }
-    std::map<std::string, std::vector<const StepRecord*>> detected;
-    for (const StepRecord& s : file_.steps) detected[s.device].push_back(&s);
-    std::size_t n_true = 0, n_detected = file_.steps.size(), n_matched = 0, n_unknown = 0;
-    for (const auto& [id, v] : true_t) n_true += v.size();
-    std::vector<double> all_errors;
-    ojson per_device = ojson::array();
-    std::set<std::string> devices;
-    for (const auto& [id, v] : true_t) devices.insert(id);
-    for (const auto& [id, v] : detected) devices.insert(id);
-    for (const std::string& dev : devices) {
-      auto det = detected[dev];
-      const auto& tt = true_t[dev];
-      const auto& ts = true_stride[dev];
-      if (!truth_.find(dev) && !truth_.tracks.count(dev)) n_unknown += det.size();
-      const ClockModel clock = truth_.clock(dev);
-      std::vector<std::pair<double, const StepRecord*>> d;
-      for (const StepRecord* s : det) d.emplace_back(clock.true_from_local(s->t_s), s);
-      std::sort(d.begin(), d.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-      std::vector<bool> used(tt.size(), false);
-      std::vector<double> errors;
-      std::size_t matched = 0;
-      for (const auto& [t, s] : d) {
-        // nearest unused true step within the tolerance
-        auto it = std::lower_bound(tt.begin(), tt.end(), t);
-        long best = -1;
-        double best_dt = options_.step_match_tolerance_s;
-        for (long k = static_cast<long>(it - tt.begin()) - 2; k <= static_cast<long>(it - tt.begin()) + 1; ++k) {
-          if (k < 0 || k >= static_cast<long>(tt.size()) || used[static_cast<std::size_t>(k)]) continue;
-          const double dt = std::abs(tt[static_cast<std::size_t>(k)] - t);
-          if (dt <= best_dt) {
-            best_dt = dt;
-            best = k;
-          }
-        }
-        if (best < 0) continue;
-        used[static_cast<std::size_t>(best)] = true;
-        ++matched;
-        if (std::isfinite(s->stride_m)) errors.push_back(std::abs(s->stride_m - ts[static_cast<std::size_t>(best)]));
-      }
-      n_matched += matched;
-      const Stats st = stats_of(errors);
-      all_errors.insert(all_errors.end(), errors.begin(), errors.end());
-      per_device.push_back({{"device", dev}, {"steps_true", tt.size()}, {"steps_detected", d.size()}, {"steps_matched", matched},
-                            {"strides_scored", errors.size()}, {"mean_stride_error_m", num(st.mean)}, {"max_stride_error_m", num(st.max)}});
-      for (auto& row : result_.targets) {
-        if (row["target"] == dev) {
-          row["steps_matched"] = matched;
-          row["mean_stride_error_m"] = num(st.mean);
-        }
-      }
-    }
-    const Stats st = stats_of(all_errors);
-    sum["steps_true"] = n_true;
-    sum["steps_detected"] = n_detected;
-    sum["steps_matched"] = n_matched;
-    sum["steps_missed"] = n_true - n_matched;
-    sum["steps_extra"] = n_detected - n_matched;
-    sum["strides_scored"] = st.n;
-    sum["mean_stride_error_m"] = num(st.mean);
-    sum["median_stride_error_m"] = num(st.median);
-    sum["max_stride_error_m"] = num(st.max);
-    result_.details["steps"] = per_device;
-    if (n_unknown) result_.warnings.push_back(std::to_string(n_unknown) + " step events come from devices the scene does not have");
-  }
-
-  // ---------------------------------------------------------------------------- AMIL
-  void amil() {
-    std::vector<double> dir_all, dist_all, pct_all, pos_all;
-    for (const std::string& id : row_order()) {
-      auto members = of_target(id);
-      std::vector<double> dir, dist, pct, pos;
-      double true_dist = kNaN, true_dir = kNaN;
-      for (const Scored* s : members) {
-        if (!counts(*s)) continue;
-        const Vec3 truth_v = s->truth_frame;
-        const double td = truth_v.head<2>().norm();
-        const double tdir = std::atan2(truth_v.y(), truth_v.x());
-        double edir = kNaN, edist = kNaN;
-        if (std::isfinite(s->e->direction_rad) && !s->frame.aligned()) edir = s->e->direction_rad;
-        else if (s->e->has_position()) edir = std::atan2(s->est.y(), s->est.x());
-        if (std::isfinite(s->e->distance_m) && !s->frame.aligned()) edist = s->e->distance_m;
-        else if (s->e->has_position()) edist = s->est.head<2>().norm();
-        true_dist = td;
-        true_dir = tdir;
-        if (std::isfinite(edir)) dir.push_back(std::abs(wrap_pi(edir - tdir)) * 180.0 / std::numbers::pi);
-        if (std::isfinite(edist)) {
-          dist.push_back(std::abs(edist - td));
-          if (td > 0) pct.push_back(100.0 * std::abs(edist - td) / td);
-        }
-        if (s->positioned) pos.push_back(s->error_m);
-      }
-      ojson row = row_start(id, members, !dir.empty() || !pos.empty());
-      row["true_distance_m"] = num(true_dist);
-      row["true_direction_deg"] = num(true_dir * 180.0 / std::numbers::pi);
-      row["direction_error_deg"] = num(mean_of(dir));
-      row["distance_error_m"] = num(mean_of(dist));
-      row["distance_error_pct"] = num(mean_of(pct));
-      row["position_error_m"] = num(mean_of(pos));
-      dir_all.insert(dir_all.end(), dir.begin(), dir.end());
-      dist_all.insert(dist_all.end(), dist.begin(), dist.end());
-      pct_all.insert(pct_all.end(), pct.begin(), pct.end());
-      pos_all.insert(pos_all.end(), pos.begin(), pos.end());
-      result_.targets.push_back(std::move(row));
-    }
-    auto& sum = result_.summary;
-    const Stats d = stats_of(dir_all), p = stats_of(pos_all);
-    sum["mean_direction_error_deg"] = num(d.mean);
-    sum["median_direction_error_deg"] = num(d.median);
-    sum["max_direction_error_deg"] = num(d.max);
-    sum["mean_distance_error_m"] = num(mean_of(dist_all));
-    sum["mean_distance_error_pct"] = num(mean_of(pct_all));
-    sum["median_distance_error_pct"] = num(median_of(pct_all));
-    sum["mean_error_m"] = num(p.mean);
-    sum["median_error_m"] = num(p.median);
-    sum["p90_error_m"] = num(p.p90);
-    sum["max_error_m"] = num(p.max);
-  }
-
-  // ---------------------------------------------------------------------------- TUM
-  void tum() {
-    // Snapshots: same reference and frame, t_s within the tolerance of the previous member.
-    std::map<std::string, std::vector<const Scored*>> by_rf;
-    for (const auto& s : scored_)
-      if (s.positioned) by_rf[s.e->reference + "\x1f" + s.e->frame].push_back(&s);
-    std::vector<double> snapshot_errors;
-    std::map<std::pair<std::string, std::string>, std::vector<double>> pair_errors;
-    std::map<std::string, std::vector<double>> target_errors;
-    ojson snapshots = ojson::array();
-    std::size_t n_snapshots = 0, single = 0;
-    for (auto& [rf, members] : by_rf) {
-      std::stable_sort(members.begin(), members.end(), [](const Scored* a, const Scored* b) { return a->e->t_s < b->e->t_s; });
-      std::size_t start = 0;
-      for (std::size_t i = 1; i <= members.size(); ++i) {
-        if (i < members.size() && members[i]->e->t_s - members[i - 1]->e->t_s <= options_.snapshot_tolerance_s) continue;
-        ++n_snapshots;
-        std::map<std::string, const Scored*> snap;  // last estimate per target
-        for (std::size_t k = start; k < i; ++k) snap[members[k]->id] = members[k];
-        start = i;
-        if (snap.size() < 2) {
-          ++single;
-          continue;
-        }
-        std::vector<double> errs;
-        for (auto a = snap.begin(); a != snap.end(); ++a) {
-          for (auto b = std::next(a); b != snap.end(); ++b) {
-            const int dims = std::min(a->second->e->dims, b->second->e->dims);
-            // Distances are frame-invariant: estimated in the estimate frame, true in the world.
-            const double d_est = norm_dims(a->second->est - b->second->est, dims);
-            const double d_true = norm_dims(a->second->truth_world - b->second->truth_world, dims);
-            const double err = std::abs(d_est - d_true);
-            errs.push_back(err);
-            pair_errors[{a->first, b->first}].push_back(err);
-            target_errors[a->first].push_back(err);
-            target_errors[b->first].push_back(err);
-          }
-        }
-        const double e = mean_of(errs);
-        snapshot_errors.push_back(e);
-        ojson ids = ojson::array();
-        for (const auto& [id, s] : snap) ids.push_back(id);
-        snapshots.push_back({{"t_s", snap.begin()->second->e->t_s}, {"reference", snap.begin()->second->e->reference},
-                             {"targets", ids}, {"pairs", errs.size()}, {"error_m", e}});
-      }
-    }
-    for (const std::string& id : row_order()) {
-      auto members = of_target(id);
-      const auto& errs = target_errors[id];
-      ojson row = row_start(id, members, !errs.empty());
-      row["pairs"] = errs.size();
-      row["mean_pair_error_m"] = num(mean_of(errs));
-      result_.targets.push_back(std::move(row));
-    }
-    ojson pairs = ojson::array();
-    for (const auto& [ab, errs] : pair_errors)
-      pairs.push_back({{"a", ab.first}, {"b", ab.second}, {"n", errs.size()}, {"mean_abs_error_m", mean_of(errs)}});
-    const Stats st = stats_of(snapshot_errors);
-    auto& sum = result_.summary;
-    sum["snapshots"] = n_snapshots;
-    sum["snapshots_scored"] = st.n;
-    sum["mean_error_m"] = num(st.mean);
-    sum["median_error_m"] = num(st.median);
-    sum["p90_error_m"] = num(st.p90);
-    sum["max_error_m"] = num(st.max);
-    result_.details["pairs"] = pairs;
-    result_.details["snapshots"] = snapshots;
-    if (single) result_.warnings.push_back(std::to_string(single) + " snapshots hold a single target: no pair distance to score");
   }
 
   // ---------------------------------------------------------------------------- counts
@@ -634,40 +288,86 @@ class GroupScorer {
   std::map<std::string, ReasonLog> unknown_;
   std::set<std::string> located_;
   std::optional<std::set<std::string>> expected_cache_;
-  std::vector<double> position_errors_;
-  std::vector<double> path_pcts_;
+  const Metric& metric_;
 };
 
 }  // namespace
 
-std::string_view family_name(Family f) noexcept {
-  switch (f) {
-    case Family::Position: return "position";
-    case Family::Tum: return "tum";
-    case Family::Amil: return "amil";
-    case Family::Montage: return "montage";
-    case Family::Spyloc: return "spyloc";
-    case Family::Locble: return "locble";
+double mean_of(const std::vector<double>& v) {
+  if (v.empty()) return kNaN;
+  double s = 0;
+  for (double x : v) s += x;
+  return s / static_cast<double>(v.size());
+}
+
+double median_of(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return percentile_sorted(v, 0.5);
+}
+
+const Metric* find_metric(std::string_view name) {
+  for (const Metric* m : metrics())
+    if (m->name == name) return m;
+  return nullptr;
+}
+
+std::vector<std::string> metric_names() {
+  std::vector<std::string> out;
+  for (const Metric* m : metrics()) out.emplace_back(m->name);
+  return out;
+}
+
+std::vector<double> score_positions(GroupContext& g, bool final_only, bool path_pct) {
+  std::vector<double> path_pcts;
+  std::vector<double> all, finals;
+  for (const std::string& id : g.row_order()) {
+    auto members = g.of_target(id);
+    std::vector<double> errors;
+    const Scored* last = nullptr;
+    for (const Scored* s : members) {
+      if (!s->positioned) continue;
+      errors.push_back(s->error_m);
+      if (!last || s->e->t_s >= last->e->t_s) last = s;
+    }
+    ojson row = g.row_start(id, members, !errors.empty());
+    const Stats st = stats_of(errors);
+    row["mean_error_m"] = num(st.mean);
+    row["median_error_m"] = num(st.median);
+    row["p90_error_m"] = num(st.p90);
+    row["max_error_m"] = num(st.max);
+    row["final_error_m"] = num(last ? last->error_m : kNaN);
+    if (path_pct) {
+      double path = kNaN, pct = kNaN;
+      auto track = g.truth().tracks.find(id);
+      if (last && track != g.truth().tracks.end()) {
+        double t0 = last->t_true_s;
+        for (const Scored* s : members)
+          if (s->positioned) t0 = std::min(t0, s->t_true_s);
+        const auto& tr = track->second;
+        path = tr.path_length_m(std::min(t0, tr.t_begin_s()), last->t_true_s, true);
+        if (path > 0) pct = 100.0 * st.mean / path;
+      }
+      row["path_length_m"] = num(path);
+      row["mean_error_pct_of_path"] = num(pct);
+      if (std::isfinite(pct)) path_pcts.push_back(pct);
+    }
+    if (last) finals.push_back(last->error_m);
+    all.insert(all.end(), errors.begin(), errors.end());
+    g.result().targets.push_back(std::move(row));
   }
-  return "position";
+  const Stats st = stats_of(final_only ? finals : all);
+  auto& sum = g.result().summary;
+  if (final_only) sum["all_estimates_mean_error_m"] = num(mean_of(all));
+  sum["mean_error_m"] = num(st.mean);
+  sum["median_error_m"] = num(st.median);
+  sum["p80_error_m"] = num(st.p80);
+  sum["p90_error_m"] = num(st.p90);
+  sum["max_error_m"] = num(st.max);
+  sum["rms_error_m"] = num(st.rms);
+  if (path_pct) sum["mean_error_pct_of_path"] = num(mean_of(path_pcts));
+  return all;
 }
 
-std::optional<Family> family_from_name(std::string_view name) noexcept {
-  for (Family f : {Family::Position, Family::Tum, Family::Amil, Family::Montage, Family::Spyloc, Family::Locble})
-    if (family_name(f) == name) return f;
-  return std::nullopt;
-}
-
-Family detect_family(std::string_view plugin, std::string_view frame) noexcept {
-  const std::string p = lower(plugin);
-  for (Family f : {Family::Spyloc, Family::Montage, Family::Locble, Family::Amil, Family::Tum})
-    if (p.find(family_name(f)) != std::string::npos) return f;
-  const auto at = frame.find('@');
-  const std::string_view base = frame.substr(0, at);
-  if (base == "player_start") return Family::Amil;
-  if (base == "observer_start") return Family::Locble;
-  return Family::Position;
-}
 
 double percentile_sorted(const std::vector<double>& sorted, double q) {
   if (sorted.empty()) return kNaN;
@@ -698,6 +398,32 @@ Stats stats_of(std::vector<double> v) {
   s.max = v.back();
   return s;
 }
+
+namespace {
+
+std::string known_metrics() {
+  std::string list;
+  for (const std::string& n : metric_names()) list += (list.empty() ? "" : ", ") + n;
+  return list;
+}
+
+/// The metric named by --metric, else by the scene's environment.family. Never a guess.
+const Metric& metric_for(const TruthData& truth, const EvalOptions& options) {
+  const std::string yaml = truth.scene_dir.empty() ? std::string("scene.yaml") : truth.scene_dir + "/scene.yaml";
+  if (options.metric) {
+    if (const Metric* m = find_metric(*options.metric)) return *m;
+    throw InputError("--metric " + *options.metric + ": no such metric (known: " + known_metrics() + ")");
+  }
+  if (truth.family.empty())
+    throw InputError(yaml + ": the scene names no family (environment.family) and no --metric was given: cannot tell "
+                     "which metric scores its estimates; pass --metric NAME (" + known_metrics() +
+                     "; `position` is the generic position error)");
+  if (const Metric* m = find_metric(truth.family)) return *m;
+  throw InputError(yaml + ": environment.family '" + truth.family + "' has no metric (known: " + known_metrics() +
+                   "); pass --metric NAME");
+}
+
+}  // namespace
 
 EvalResult evaluate(const TruthData& truth, const EstimatesFile& file, const EvalOptions& options) {
   EvalResult result;
@@ -735,13 +461,11 @@ EvalResult evaluate(const TruthData& truth, const EstimatesFile& file, const Eva
     if (!index.count(p)) result.warnings.push_back("plugin '" + p + "' (--plugin) has no estimate in " + file.path);
   if (groups.empty()) result.warnings.push_back("no estimate to score in " + file.path);
   // Steps without any Montage estimates are still scored when --metric montage is given.
-  if (groups.empty() && options.metric == Family::Montage && !file.steps.empty()) groups.push_back(Group{"(steps)", {}});
+  if (groups.empty() && options.metric == "montage" && !file.steps.empty()) groups.push_back(Group{"(steps)", {}});
+  if (groups.empty()) return result;
 
-  for (const Group& g : groups) {
-    const Family f = options.metric ? *options.metric
-                                    : detect_family(g.plugin, g.estimates.empty() ? std::string_view{} : g.estimates.front()->frame);
-    result.groups.push_back(GroupScorer(truth, file, options, g, f).run());
-  }
+  const Metric& metric = metric_for(truth, options);
+  for (const Group& g : groups) result.groups.push_back(GroupScorer(truth, file, options, g, metric).run());
   return result;
 }
 

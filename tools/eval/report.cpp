@@ -78,7 +78,7 @@ std::vector<ThresholdOutcome> check_thresholds(const EvalResult& result, const s
     }
     if (!applied) {
       std::string families;
-      for (const GroupResult& g : result.groups) families += (families.empty() ? "" : ", ") + g.plugin + " (" + std::string(family_name(g.family)) + ")";
+      for (const GroupResult& g : result.groups) families += (families.empty() ? "" : ", ") + g.plugin + " (" + g.family + ")";
       errors.push_back("--" + t.option + ": no scored plugin reports '" + spec->key + "' (scored: " +
                        (families.empty() ? std::string("none") : families) + ")");
     }
@@ -93,7 +93,7 @@ void print_table(std::ostream& out, const EvalResult& result, const std::vector<
   for (const auto& [type, n] : result.other_events) out << ", " << n << " " << type;
   out << " lines\n";
   for (const GroupResult& g : result.groups) {
-    out << "\n== " << g.plugin << "  metric " << family_name(g.family);
+    out << "\n== " << g.plugin << "  metric " << g.family;
     auto join = [](const std::vector<std::string>& v) {
       std::string s;
       for (const auto& x : v) s += (s.empty() ? "" : ",") + (x.empty() ? std::string("\"\"") : x);
@@ -155,7 +155,7 @@ ojson to_json(const EvalResult& result, const std::vector<ThresholdOutcome>& out
   for (const GroupResult& g : result.groups) {
     ojson p = ojson::object();
     p["plugin"] = g.plugin;
-    p["metric"] = std::string(family_name(g.family));
+    p["metric"] = g.family;
     p["references"] = g.references;
     p["frames"] = g.frames;
     p["summary"] = g.summary;

@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include <yaml-cpp/yaml.h>
+
 #include "locus/eval/error.hpp"
 #include "locus/scene/pose.hpp"
 #include "locus/scene/scene.hpp"
@@ -20,6 +22,18 @@ namespace {
 std::string upper(std::string s) {
   for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
   return s;
+}
+
+/// environment.family of scene.yaml ("" when absent); load_scene has already parsed the file.
+std::string scene_family(const std::string& yaml_path) {
+  const YAML::Node root = YAML::LoadFile(yaml_path);
+  const YAML::Node env = root["environment"];
+  if (!env || !env.IsMap() || !env["family"]) return "";
+  const YAML::Node f = env["family"];
+  if (!f.IsScalar() || f.Scalar().empty())
+    throw InputError(yaml_path + ":" + std::to_string(f.Mark().line + 1) + ":" + std::to_string(f.Mark().column + 1) +
+                     ": environment.family: expected the name of a system (e.g. amil)");
+  return f.Scalar();
 }
 
 std::vector<std::string> issues_of(const scene::SceneError& e) {
@@ -136,6 +150,7 @@ TruthData load_truth(const std::string& scene_dir) {
   TruthData out;
   out.scene_dir = scene_dir;
   out.scene_name = sc.name;
+  out.family = scene_family(yaml);
   for (const auto& d : sc.devices) {
     TruthObject o;
     o.id = d.id;

@@ -22,9 +22,9 @@ struct SimulateArgs {
 };
 
 int list_families() {
-  for (const auto& f : sim::families()) {
-    std::cout << f.name << "\n  " << f.description << "\n";
-    for (const auto& o : f.options)
+  for (const sim::Family* f : sim::families()) {
+    std::cout << f->name << "\n  " << f->description << "\n";
+    for (const auto& o : f->options)
       std::cout << "    -o " << o.key << "=<" << o.type << ">  (default " << o.default_value << ")  " << o.doc << "\n";
   }
   return kExitOk;
@@ -53,7 +53,7 @@ Subcommand add_simulate_command(CLI::App& cli) {
     const sim::Family* fam = sim::find_family(args->family);
     if (!fam) {
       std::cerr << "locus simulate: unknown family '" << args->family << "' (known:";
-      for (const auto& f : sim::families()) std::cerr << " " << f.name;
+      for (const sim::Family* f : sim::families()) std::cerr << " " << f->name;
       std::cerr << ")\n";
       return kExitBadConfig;
     }
@@ -64,7 +64,9 @@ Subcommand add_simulate_command(CLI::App& cli) {
     std::unique_ptr<sim::SceneSimulator> simulator;
     try {
       for (const auto& kv : args->options) fo.set_from_assignment(kv);
-      simulator = std::make_unique<sim::SceneSimulator>(fam->make(fo));
+      sim::Simulation s = fam->make(fo);
+      s.family = fam->name;  // environment.family: the name the eval metric and the replay config go by
+      simulator = std::make_unique<sim::SceneSimulator>(std::move(s));
     } catch (const std::invalid_argument& e) {
       std::cerr << "locus simulate " << args->family << ": " << e.what() << "\n";
       return kExitBadConfig;

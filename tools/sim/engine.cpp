@@ -646,7 +646,7 @@ std::string environment_yaml(const Simulation& sim) {
     for (int i = 0; i < 3; ++i) size.push_back(fmt(r.size_m[i]));
     env["room"] = size;
   }
-  if (!sim.family.empty()) env["simulator_family"] = sim.family;
+  if (!sim.family.empty()) env["family"] = sim.family;
   env["simulator_seed"] = std::to_string(sim.seed);
   env["truth_emissions"] = "truth_emissions.csv";
   if (!sim.environment_yaml.empty()) {

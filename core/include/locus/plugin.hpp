@@ -10,7 +10,7 @@
 // versions. The factories create C++ objects, so a plugin must be built with a compatible C++
 // toolchain; LOCUS_PLUGIN_ABI_VERSION changes whenever any header a plugin sees changes layout.
 //
-// Built-in plugins use the same descriptors, listed in plugins/builtin.cpp.
+// Built-in plugins use the same descriptors, listed in LOCUS_BUILTIN_PLUGINS (plugins/CMakeLists.txt).
 //
 // Writing a plugin: implement locus::Detector or locus::Localizer, declare its ParamSchema, and
 // LOCUS_PLUGIN_EXPORT(your descriptor(s)). examples/out-of-tree-plugin shows a complete one.

@@ -9,7 +9,7 @@
 
 namespace {
 
-using namespace locus::amil;
+using namespace locus::plugins::amil;
 
 TEST(AmilMessages, RoundTrip) {
   ArrivalMessage a{"L7", 4, 123456.789012345, 44100.0, 1, 31.25};

@@ -15,6 +15,7 @@
 namespace {
 
 using namespace locus;
+namespace amil = locus::plugins::amil;
 
 class FakeEmitter final : public Emitter {
  public:
@@ -49,10 +50,10 @@ struct Node {
   std::string device;
 };
 
-std::unique_ptr<Localizer> make_amil() { return std::unique_ptr<Localizer>(amil_descriptor()->create_localizer()); }
+std::unique_ptr<Localizer> make_amil() { return std::unique_ptr<Localizer>(plugins::amil::descriptor()->create_localizer()); }
 
 Params params(std::initializer_list<std::pair<const char*, ParamValue>> kv = {}) {
-  Params p = Params::defaults(amil_schema());
+  Params p = Params::defaults(plugins::amil::schema());
   for (const auto& [k, v] : kv) p.set(k, v);
   return p;
 }

@@ -10,8 +10,8 @@
 
 namespace {
 
-using locus::amil::GestureTracker;
-using locus::amil::TrackerConfig;
+using locus::plugins::amil::GestureTracker;
+using locus::plugins::amil::TrackerConfig;
 
 struct TrackRun {
   double max_err_m = 0.0, rms_err_m = 0.0;
@@ -89,8 +89,8 @@ TEST(AmilTracker, SessionsPausesAndCallbacks) {
   const auto g = amil_test::make_gesture(3);
   GestureTracker tr;
   int pauses = 0, closed = 0;
-  tr.on_pause([&](const locus::amil::Session&, double) { ++pauses; });
-  tr.on_session_closed([&](const locus::amil::Session& s, double) {
+  tr.on_pause([&](const locus::plugins::amil::Session&, double) { ++pauses; });
+  tr.on_session_closed([&](const locus::plugins::amil::Session& s, double) {
     ++closed;
     EXPECT_TRUE(s.closed);
   });

@@ -11,7 +11,7 @@
 
 #include "amil/solver.hpp"
 
-namespace amil = locus::amil;
+namespace amil = locus::plugins::amil;
 
 namespace {
 

@@ -79,8 +79,8 @@ std::vector<std::vector<float>> render(std::size_t channels, std::size_t frames,
 struct Harness {
   explicit Harness(std::uint32_t channels, std::initializer_list<std::pair<std::string, ParamValue>> overrides = {},
                    std::uint32_t max_block = 8192, const DeviceGeometry* geometry = nullptr) {
-    det.reset(chirp_descriptor()->create_detector());
-    Params p = Params::defaults(chirp_schema());
+    det.reset(plugins::chirp::descriptor()->create_detector());
+    Params p = Params::defaults(plugins::chirp::schema());
     for (const auto& [k, v] : overrides) p.set(k, v);
     StreamInfo info;
     info.device = "A";

@@ -29,7 +29,7 @@ struct Fixture {
 };
 
 std::unique_ptr<Detector> make(Fixture& f, const Params& p, std::uint32_t max_block = 1024, std::uint32_t channels = 1) {
-  std::unique_ptr<Detector> d(goldcode_descriptor()->create_detector());
+  std::unique_ptr<Detector> d(plugins::goldcode::descriptor()->create_detector());
   StreamInfo info;
   info.device = DeviceId("A");
   info.channels = channels;
@@ -96,7 +96,7 @@ Result run(Detector& d, const std::vector<float>& x, std::size_t block) {
 
 TEST(Goldcode, FourOverlappingUsersAllDetectedAtMinus5dB) {
   Fixture f;
-  const Params p = Params::defaults(goldcode_schema());  // codes 0,1,2,3, degree 7, 19 kHz, 40 chips
+  const Params p = Params::defaults(plugins::goldcode::schema());  // codes 0,1,2,3, degree 7, 19 kHz, 40 chips
   const std::vector<double> amp_rel = {1.0, 0.75, 0.55, 0.4};  // weakest user is at -5 dB
   const double weakest_snr_db = -5.0;
   std::mt19937 rng(1234);
@@ -149,7 +149,7 @@ TEST(Goldcode, FourOverlappingUsersAllDetectedAtMinus5dB) {
 
 TEST(Goldcode, AmplitudeEstimateAndNoiseOnlyIsQuiet) {
   Fixture f;
-  const Params p = Params::defaults(goldcode_schema());
+  const Params p = Params::defaults(plugins::goldcode::schema());
   std::mt19937 rng(7);
   std::normal_distribution<float> noise(0.0f, 0.1f);
   std::vector<float> x(static_cast<std::size_t>(6.0 * kFs));
@@ -172,7 +172,7 @@ TEST(Goldcode, AmplitudeEstimateAndNoiseOnlyIsQuiet) {
 
 TEST(Goldcode, BlockSizeDoesNotChangeResults) {
   Fixture f;
-  const Params p = Params::defaults(goldcode_schema());
+  const Params p = Params::defaults(plugins::goldcode::schema());
   std::mt19937 rng(99);
   std::normal_distribution<float> noise(0.0f, 0.05f);
   std::vector<float> x(static_cast<std::size_t>(1.0 * kFs));
@@ -192,7 +192,7 @@ TEST(Goldcode, BlockSizeDoesNotChangeResults) {
 
 TEST(Goldcode, RecoversAfterOverrunAndKeepsStreamFrames) {
   Fixture f;
-  const Params p = Params::defaults(goldcode_schema());
+  const Params p = Params::defaults(plugins::goldcode::schema());
   std::vector<float> x(static_cast<std::size_t>(0.8 * kFs), 0.0f);
   add_signal(x, gold(1), 12000.0, 0.2);
   auto d = make(f, p);
@@ -208,7 +208,7 @@ TEST(Goldcode, RecoversAfterOverrunAndKeepsStreamFrames) {
 
 TEST(Goldcode, RejectsBadParameters) {
   Fixture f;
-  Params p = Params::defaults(goldcode_schema());
+  Params p = Params::defaults(plugins::goldcode::schema());
   p.set("codes", std::vector<double>{0.0, 300.0});
   try {
     make(f, p);
@@ -216,7 +216,7 @@ TEST(Goldcode, RejectsBadParameters) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("code index 300"), std::string::npos) << e.what();
   }
-  Params q = Params::defaults(goldcode_schema());
+  Params q = Params::defaults(plugins::goldcode::schema());
   q.set("carrier_hz", 21500.0);
   q.set("band_width_hz", 2000.0);
   EXPECT_THROW(make(f, q), std::runtime_error);

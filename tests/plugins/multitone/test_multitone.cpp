@@ -26,7 +26,7 @@ struct Fixture {
 };
 
 std::unique_ptr<Detector> make(Fixture& f, const Params& p) {
-  std::unique_ptr<Detector> d(multitone_descriptor()->create_detector());
+  std::unique_ptr<Detector> d(plugins::multitone::descriptor()->create_detector());
   StreamInfo info;
   info.device = DeviceId("U");
   info.channels = 1;
@@ -83,7 +83,7 @@ TEST(Multitone, MacBitsOfThePaperExample) {
 
 TEST(Multitone, IdentityAndArrivalAtStatedSnrs) {
   Fixture f;
-  const Params p = Params::defaults(multitone_schema());
+  const Params p = Params::defaults(plugins::multitone::schema());
   std::mt19937 rng(42);
   std::uniform_int_distribution<int> id(1, 1023);
   for (double snr_db : {10.0, 0.0, -5.0}) {
@@ -119,7 +119,7 @@ TEST(Multitone, IdentityAndArrivalAtStatedSnrs) {
 
 TEST(Multitone, NoiseOnlyIsQuiet) {
   Fixture f;
-  auto d = make(f, Params::defaults(multitone_schema()));
+  auto d = make(f, Params::defaults(plugins::multitone::schema()));
   std::mt19937 rng(3);
   std::normal_distribution<float> g(0.0f, 0.05f);
   std::vector<float> x(static_cast<std::size_t>(5.0 * kFs));
@@ -148,7 +148,7 @@ std::vector<float> reverberant(double rt60, std::uint32_t mask, double at, std::
 
 TEST(Multitone, DecayFeaturesMonotoneAndLongerWithMoreReverberation) {
   Fixture f;
-  Params p = Params::defaults(multitone_schema());
+  Params p = Params::defaults(plugins::multitone::schema());
   p.set("tail_s", 0.3);
   std::mt19937 rng(5);
   std::vector<std::array<float, 6>> feats;
@@ -172,16 +172,16 @@ TEST(DecayTimes, ExactOnAnExponentialEnvelope) {
   // Energy flat at 1 for 100 samples, then −60 dB per 1000 samples: x dB is reached x/60·1000 after.
   std::vector<double> e(3000);
   for (std::size_t i = 0; i < e.size(); ++i) e[i] = i < 100 ? 1.0 : std::pow(10.0, -6.0 * (i - 100) / 1000.0);
-  const auto t = decay_times(e, 0, 100, 100, 1000.0);
+  const auto t = plugins::multitone::decay_times(e, 0, 100, 100, 1000.0);
   for (int k = 0; k < 6; ++k) EXPECT_NEAR(t[k], 5.0 * (k + 1) / 60.0, 1.5e-3) << k;
   std::vector<double> shallow(200, 1.0);
   for (std::size_t i = 100; i < 200; ++i) shallow[i] = 0.5;  // only −3 dB: nothing reached
-  for (float v : decay_times(shallow, 0, 100, 100, 1000.0)) EXPECT_TRUE(std::isnan(v));
+  for (float v : plugins::multitone::decay_times(shallow, 0, 100, 100, 1000.0)) EXPECT_TRUE(std::isnan(v));
 }
 
 TEST(Multitone, RejectsBadParameters) {
   Fixture f;
-  Params p = Params::defaults(multitone_schema());
+  Params p = Params::defaults(plugins::multitone::schema());
   p.set("tones_hz", std::vector<double>{18000.0, 17000.0});
   try {
     make(f, p);

@@ -31,6 +31,7 @@ class EvalCli : public ::testing::Test {
 name: eval-cli
 sample_rate: 44100
 speed_of_sound: 343.2
+environment: {family: spyloc}
 devices:
   - id: P
     mics: [[0.0, 0.0, 0.0]]
@@ -60,6 +61,12 @@ truth:
   static void write(const fs::path& p, const std::string& text) {
     std::ofstream f(p);
     f << text;
+  }
+  static std::string read(const fs::path& p) {
+    std::ifstream f(p);
+    std::stringstream ss;
+    ss << f.rdbuf();
+    return ss.str();
   }
 
   /// Estimates: P at true 2, 4, 6 s with 0.3 m error (stamped on P's clock); Q with 0.1 m error.
@@ -171,7 +178,7 @@ TEST_F(EvalCli, NothingToScoreMissesEveryThreshold) {
   const fs::path path = dir_ / "empty.jsonl";
   write(path, test::step_line("P", 1.0, 0.7) + "\n");
   EvalCommand c = command(path.string());
-  c.options.metric = Family::Spyloc;  // no estimate: no group, so the threshold reports nothing
+  c.options.metric = "spyloc";  // no estimate: no group, so the threshold reports nothing
   c.thresholds = {{"max-mean-error-m", 1.0}};
   std::string err;
   EXPECT_EQ(run(c, nullptr, &err), kExitBadInput);
@@ -179,13 +186,7 @@ TEST_F(EvalCli, NothingToScoreMissesEveryThreshold) {
 }
 
 TEST_F(EvalCli, SceneWithoutTruthIsBadInput) {
-  std::string yaml;
-  {
-    std::ifstream f(dir_ / "scene.yaml");
-    std::stringstream ss;
-    ss << f.rdbuf();
-    yaml = ss.str();
-  }
+  std::string yaml = read(dir_ / "scene.yaml");
   write(dir_ / "scene.yaml", yaml.substr(0, yaml.find("truth:")));
   std::string err;
   EXPECT_EQ(run(command(good_estimates()), nullptr, &err), kExitBadInput);
@@ -234,7 +235,7 @@ TEST_F(EvalCli, ReadsTruthStepsAndTruthLosNextToTruthCsv) {
   auto j = nlohmann::json::parse(out);
   EXPECT_NEAR(j["plugins"][0]["summary"]["los_median_error_m"].get<double>(), 0.2, 1e-9);
   EXPECT_NEAR(j["plugins"][0]["summary"]["nlos_median_error_m"].get<double>(), 0.6, 1e-9);
-  c.options.metric = Family::Montage;
+  c.options.metric = "montage";
   ASSERT_EQ(run(c, &out), kExitOk);
   j = nlohmann::json::parse(out);
   EXPECT_EQ(j["plugins"][0]["summary"]["steps_matched"], 2);
@@ -244,6 +245,34 @@ TEST_F(EvalCli, ReadsTruthStepsAndTruthLosNextToTruthCsv) {
   std::string err;
   EXPECT_EQ(run(c, nullptr, &err), kExitBadInput);
   EXPECT_NE(err.find("truth_steps.csv:2:"), std::string::npos) << err;
+}
+
+TEST_F(EvalCli, TheScenesFamilyPicksTheMetricWithoutItTheRunIsBadInput) {
+  std::string yaml = read(dir_ / "scene.yaml");
+  EXPECT_EQ(load_truth(dir_.string()).family, "spyloc");
+  // A plugin named like another system is still scored by the scene's family.
+  const fs::path path = dir_ / "named.jsonl";
+  write(path, estimate_line("amil_tum", "", "world", "P", 1.0, {1, 0}) + "\n");
+  std::string out;
+  EXPECT_EQ(run(command(path.string()), &out), kExitOk);
+  EXPECT_NE(out.find("== amil_tum  metric spyloc"), std::string::npos) << out;
+  // No environment.family and no --metric: exit 2 with the scene file and the way out.
+  const std::string nofamily = yaml.replace(yaml.find("environment: {family: spyloc}\n"), 30, "");
+  write(dir_ / "scene.yaml", nofamily);
+  EXPECT_EQ(load_truth(dir_.string()).family, "");
+  std::string err;
+  EXPECT_EQ(run(command(path.string()), nullptr, &err), kExitBadInput);
+  EXPECT_NE(err.find((dir_ / "scene.yaml").string() + ": the scene names no family (environment.family) and no --metric was given"),
+            std::string::npos) << err;
+  EvalCommand c = command(path.string());
+  c.options.metric = "position";
+  EXPECT_EQ(run(c, &out), kExitOk);
+  EXPECT_NE(out.find("== amil_tum  metric position"), std::string::npos) << out;
+  // A family that is no name: file, line and column.
+  write(dir_ / "scene.yaml", nofamily + "environment:\n  family: [a, b]\n");
+  EXPECT_EQ(run(command(path.string()), nullptr, &err), kExitBadInput);
+  EXPECT_NE(err.find("scene.yaml:"), std::string::npos) << err;
+  EXPECT_NE(err.find("environment.family: expected the name of a system"), std::string::npos) << err;
 }
 
 TEST_F(EvalCli, CommandLineWiring) {

@@ -6,6 +6,7 @@
 
 #include "eval_test_support.hpp"
 #include "locus/eval/error.hpp"
+#include "locus/eval/metric.hpp"
 #include "locus/eval/metrics.hpp"
 
 namespace locus::eval {
@@ -19,6 +20,19 @@ double sum_num(const nlohmann::ordered_json& s, const char* key) {
   EXPECT_TRUE(s.contains(key)) << key;
   if (!s.contains(key) || !s[key].is_number()) return std::nan("");
   return s[key].get<double>();
+}
+
+/// Options naming the metric, as `--metric NAME` does.
+EvalOptions with_metric(const std::string& name) {
+  EvalOptions o;
+  o.metric = name;
+  return o;
+}
+
+/// The truth of a scene whose scene.yaml says `environment: {family: NAME}`.
+TruthData scene_of(TruthData truth, const std::string& family) {
+  truth.family = family;
+  return truth;
 }
 
 const nlohmann::ordered_json& row(const GroupResult& g, const std::string& target) {
@@ -42,14 +56,63 @@ TEST(EvalStats, PercentilesInterpolateLinearly) {
   EXPECT_TRUE(std::isnan(stats_of({}).mean));
 }
 
-TEST(EvalFamilies, DetectedFromPluginNameOrFrame) {
-  EXPECT_EQ(detect_family("tum_A", "relative"), Family::Tum);
-  EXPECT_EQ(detect_family("SpyLoc", "world"), Family::Spyloc);
-  EXPECT_EQ(detect_family("my_localizer", "player_start@1.0"), Family::Amil);
-  EXPECT_EQ(detect_family("finder", "observer_start"), Family::Locble);
-  EXPECT_EQ(detect_family("other", "world"), Family::Position);
-  EXPECT_EQ(family_from_name("montage"), Family::Montage);
-  EXPECT_FALSE(family_from_name("gps").has_value());
+TEST(EvalFamilies, EveryMetricIsRegisteredByName) {
+  EXPECT_EQ(metric_names(), (std::vector<std::string>{"amil", "locble", "montage", "position", "spyloc", "tum"}));
+  ASSERT_NE(find_metric("montage"), nullptr);
+  EXPECT_EQ(find_metric("montage")->name, "montage");
+  EXPECT_EQ(find_metric("gps"), nullptr);
+  for (const Metric* m : metrics()) {
+    EXPECT_NE(m->expects, nullptr) << m->name;
+    EXPECT_NE(m->score, nullptr) << m->name;
+    EXPECT_FALSE(m->summary.empty()) << m->name;
+  }
+}
+
+TEST(EvalFamilies, NamedByTheSceneOrMetricNeverByThePluginName) {
+  // Plugins called "tum_A", "SpyLoc", "finder" (frames world, player_start, observer_start) on a scene
+  // of family spyloc are all scored as SpyLoc: neither an instance's name nor its frame picks the
+  // metric (they used to: "tum_A" was TUM by substring, player_start AMIL).
+  TruthData truth;
+  truth.objects = {test::device("A"), test::device("B")};
+  test::place(truth, "A", Vec3(0, 0, 0));
+  test::place(truth, "B", Vec3(3, 0, 0));
+  const auto file = test::parse_lines({estimate_line("tum_A", "", "world", "A", 1.0, {0, 0}),
+                                       estimate_line("SpyLoc", "B", "player_start@1.0", "A", 1.0, {3, 0}),
+                                       estimate_line("finder", "B", "observer_start", "A", 1.0, {3, 0})});
+  truth.family = "spyloc";
+  EvalResult r = evaluate(truth, file, {});
+  ASSERT_EQ(r.groups.size(), 3u);
+  for (const GroupResult& g : r.groups) EXPECT_EQ(g.family, "spyloc") << g.plugin;
+  // --metric wins over the scene.
+  r = evaluate(truth, file, with_metric("position"));
+  for (const GroupResult& g : r.groups) EXPECT_EQ(g.family, "position") << g.plugin;
+  // Neither names one: a clear error, no guess from the names or frames.
+  truth.family.clear();
+  truth.scene_dir = "/scenes/s1";
+  try {
+    evaluate(truth, file, {});
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(e.messages()[0].find("/scenes/s1/scene.yaml: the scene names no family (environment.family) and no --metric"),
+              std::string::npos) << e.messages()[0];
+    EXPECT_NE(e.messages()[0].find("amil, locble, montage, position, spyloc, tum"), std::string::npos) << e.messages()[0];
+  }
+  // A family without a metric, and an unknown --metric, name what is known.
+  truth.family = "gps";
+  try {
+    evaluate(truth, file, {});
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(e.messages()[0].find("environment.family 'gps' has no metric (known: amil,"), std::string::npos) << e.messages()[0];
+  }
+  try {
+    evaluate(truth, file, with_metric("gps"));
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(e.messages()[0].find("--metric gps: no such metric"), std::string::npos) << e.messages()[0];
+  }
+  // Nothing to score needs no metric.
+  EXPECT_NO_THROW(evaluate(truth, test::parse_lines({}), {}));
 }
 
 // ------------------------------------------------------------------------------------ clocks
@@ -65,13 +128,13 @@ TEST(EvalClock, EstimateTimeIsConvertedWithTheReferenceClock) {
   std::vector<std::string> lines;
   for (double t_true : {10.0, 80.0})
     lines.push_back(estimate_line("walker", "", "world", "W", c.local_from_true(t_true), {t_true, 0.0}));
-  EvalResult r = evaluate(truth, test::parse_lines(lines), {});
+  EvalResult r = evaluate(truth, test::parse_lines(lines), with_metric("position"));
   ASSERT_EQ(r.groups.size(), 1u);
   EXPECT_NEAR(sum_num(r.groups[0].summary, "max_error_m"), 0.0, 1e-9);
   // Stamped with true time instead (the plugin forgot the clock): the error is the clock error · speed.
   lines.clear();
   lines.push_back(estimate_line("walker", "", "world", "W", 80.0, {80.0, 0.0}));
-  r = evaluate(truth, test::parse_lines(lines), {});
+  r = evaluate(truth, test::parse_lines(lines), with_metric("position"));
   EXPECT_NEAR(sum_num(r.groups[0].summary, "max_error_m"), 80.0 - c.true_from_local(80.0), 1e-9);
   EXPECT_GT(sum_num(r.groups[0].summary, "max_error_m"), 0.5);
 }
@@ -81,7 +144,7 @@ TEST(EvalClock, ExtrapolatedEstimatesAreCountedAndWarned) {
   truth.objects = {test::device("W")};
   truth.tracks["W"].add(TruthPose{0.0, Vec3(0, 0, 0), yaw(0)});
   truth.tracks["W"].add(TruthPose{10.0, Vec3(10, 0, 0), yaw(0)});
-  const EvalResult r = evaluate(truth, test::parse_lines({estimate_line("p", "", "world", "W", 12.0, {10.0, 0.0})}), {});
+  const EvalResult r = evaluate(truth, test::parse_lines({estimate_line("p", "", "world", "W", 12.0, {10.0, 0.0})}), with_metric("position"));
   EXPECT_EQ(r.groups[0].summary["extrapolated_estimates"], 1);
   EXPECT_NEAR(sum_num(r.groups[0].summary, "mean_error_m"), 0.0, 1e-12);  // truth held at its last pose
   bool warned = false;
@@ -110,10 +173,10 @@ TEST(EvalTum, RotatedAndTranslatedFormationScoresZero) {
       lines.push_back(estimate_line("tum", "A", "relative", id, t, {p.x(), p.y(), p.z()}));
     }
   }
-  const EvalResult res = evaluate(truth, test::parse_lines(lines), {});
+  const EvalResult res = evaluate(scene_of(truth, "tum"), test::parse_lines(lines), {});
   ASSERT_EQ(res.groups.size(), 1u);
   const GroupResult& g = res.groups[0];
-  EXPECT_EQ(g.family, Family::Tum);
+  EXPECT_EQ(g.family, "tum");
   EXPECT_EQ(g.summary["snapshots_scored"], 2);
   EXPECT_NEAR(sum_num(g.summary, "mean_error_m"), 0.0, 1e-9);
   EXPECT_EQ(g.summary["targets_located"], 4);
@@ -137,7 +200,7 @@ TEST(EvalTum, Equation23IsTheMeanAbsolutePairDistanceError) {
       estimate_line("tum", "A", "A_start", "B", 2.0, {3, 0, 0}),
       estimate_line("tum", "A", "A_start", "C", 2.0, {0, 4, 0}),
   };
-  const GroupResult g = evaluate(truth, test::parse_lines(lines), {}).groups.at(0);
+  const GroupResult g = evaluate(scene_of(truth, "tum"), test::parse_lines(lines), {}).groups.at(0);
   const double e1 = (0.3 + 0.0 + std::abs(std::sqrt(3.3 * 3.3 + 16.0) - 5.0)) / 3.0;
   EXPECT_NEAR(g.details["snapshots"][0]["error_m"].get<double>(), e1, 1e-12);
   EXPECT_NEAR(sum_num(g.summary, "mean_error_m"), e1 / 2.0, 1e-12);
@@ -160,8 +223,8 @@ TEST(EvalRelative, SnapshotAlignmentMakesARigidlyMovedFormationExact2D) {
     if (std::string(id) == "D") p.x() += 1.0;
     lines.push_back(estimate_line("formation", "A", "relative", id, 5.0, {p.x(), p.y()}));
   }
-  const GroupResult g = evaluate(truth, test::parse_lines(lines), {}).groups.at(0);
-  EXPECT_EQ(g.family, Family::Position);
+  const GroupResult g = evaluate(truth, test::parse_lines(lines), with_metric("position")).groups.at(0);
+  EXPECT_EQ(g.family, "position");
   // Per-target max errors: the first snapshot contributes 0; D's second error is below 1 m after the fit.
   EXPECT_NEAR(row(g, "A")["median_error_m"].get<double>(), row(g, "A")["max_error_m"].get<double>() / 2, 1e-9);
   const double d_err = row(g, "D")["max_error_m"].get<double>();
@@ -185,8 +248,8 @@ TEST(EvalRelative, TraceAlignmentUsesOneTransformForTheWholeTrace) {
     const Vec3 p = r * tr.at(t).position_m + Vec3(3, 3, 0);
     lines.push_back(estimate_line("montage", "W", "relative_trace", "W", t, {p.x(), p.y()}));
   }
-  const GroupResult g = evaluate(truth, test::parse_lines(lines), {}).groups.at(0);
-  EXPECT_EQ(g.family, Family::Montage);
+  const GroupResult g = evaluate(scene_of(truth, "montage"), test::parse_lines(lines), {}).groups.at(0);
+  EXPECT_EQ(g.family, "montage");
   EXPECT_NEAR(sum_num(g.summary, "mean_error_m"), 0.0, 1e-9);
   EXPECT_NEAR(row(g, "W")["path_length_m"].get<double>(), 15.0 - 0.5, 1e-9);  // path from t=0 start to 14.5
   // Without truth_steps.csv the stride error is reported as not scored (null), never silently absent.
@@ -213,8 +276,8 @@ TEST(EvalAmil, KnownDirectionBiasAndDistanceScale) {
       estimate_line("amil", "player", "player_start", "L2", 3.0, biased(0, 3)),
       estimate_line("amil", "player", "player_start", "ghost", 3.0, {1, 1}),
   };
-  const GroupResult g = evaluate(truth, test::parse_lines(lines), {}).groups.at(0);
-  ASSERT_EQ(g.family, Family::Amil);
+  const GroupResult g = evaluate(scene_of(truth, "amil"), test::parse_lines(lines), {}).groups.at(0);
+  ASSERT_EQ(g.family, "amil");
   EXPECT_NEAR(sum_num(g.summary, "mean_direction_error_deg"), 10.0, 1e-9);
   EXPECT_NEAR(sum_num(g.summary, "median_distance_error_pct"), 10.0, 1e-9);
   EXPECT_NEAR(row(g, "L1")["distance_error_m"].get<double>(), 0.2, 1e-9);
@@ -238,7 +301,7 @@ TEST(EvalAmil, DirectionOnlyEstimatesAndWrapAround) {
   // Direction 175° (no position): the error wraps to ≈ 5.3°, not 354.7°.
   const auto lines = {estimate_line("amil", "player", "player_start@0", "L1", 1.0, {nullptr, nullptr},
                                     {{"direction_rad", deg(175)}})};
-  const GroupResult g = evaluate(truth, test::parse_lines(lines), {}).groups.at(0);
+  const GroupResult g = evaluate(scene_of(truth, "amil"), test::parse_lines(lines), {}).groups.at(0);
   const double truth_deg = std::atan2(-0.01, -2.0) * 180 / std::numbers::pi;
   EXPECT_NEAR(sum_num(g.summary, "mean_direction_error_deg"), 360 - (175 - truth_deg), 1e-9);
   EXPECT_EQ(g.summary["targets_located"], 1);
@@ -259,8 +322,8 @@ TEST(EvalSpyloc, ErrorCdfAndLosSplit) {
   std::vector<std::string> lines;
   for (int i = 1; i <= 10; ++i)
     lines.push_back(estimate_line("spyloc", "", "world", "P", i, {double(i), 0.1 * i}, {{"los", i % 2 == 0}}));
-  const GroupResult g = evaluate(truth, test::parse_lines(lines), {}).groups.at(0);
-  ASSERT_EQ(g.family, Family::Spyloc);
+  const GroupResult g = evaluate(scene_of(truth, "spyloc"), test::parse_lines(lines), {}).groups.at(0);
+  ASSERT_EQ(g.family, "spyloc");
   EXPECT_NEAR(sum_num(g.summary, "median_error_m"), 0.55, 1e-12);
   EXPECT_NEAR(sum_num(g.summary, "p80_error_m"), 0.82, 1e-12);
   EXPECT_NEAR(sum_num(g.summary, "p90_error_m"), 0.91, 1e-12);
@@ -281,7 +344,7 @@ TEST(EvalSpyloc, LosFromTruthWhenEstimatesCarryNoFlag) {
       estimate_line("spyloc", "", "world", "P", 3.0, {0.8, 0}),   // after the NLoS beep
       estimate_line("spyloc", "", "world", "P", 0.1, {0.4, 0}),   // before any beep: unflagged
   };
-  const GroupResult g = evaluate(truth, test::parse_lines(lines), {}).groups.at(0);
+  const GroupResult g = evaluate(scene_of(truth, "spyloc"), test::parse_lines(lines), {}).groups.at(0);
   EXPECT_EQ(g.summary["los_estimates"], 1);
   EXPECT_EQ(g.summary["nlos_estimates"], 1);
   EXPECT_NEAR(sum_num(g.summary, "los_median_error_m"), 0.2, 1e-12);
@@ -308,8 +371,8 @@ TEST(EvalLocble, PerTagFinalErrorWithTargetsGivenAsBleAddresses) {
       estimate_line("locble", "O", "observer_start", "C4:2C:03:3A:2C:A1", 9.0, {2.5, 3}),  // final, 0.5 m off
       estimate_line("locble", "O", "observer_start", "tag2", 9.0, {-4, 1.5}),              // by id, 1.5 m off
   };
-  const GroupResult g = evaluate(truth, test::parse_lines(lines), {}).groups.at(0);
-  ASSERT_EQ(g.family, Family::Locble);
+  const GroupResult g = evaluate(scene_of(truth, "locble"), test::parse_lines(lines), {}).groups.at(0);
+  ASSERT_EQ(g.family, "locble");
   EXPECT_NEAR(row(g, "tag1")["final_error_m"].get<double>(), 0.5, 1e-12);
   EXPECT_NEAR(row(g, "tag2")["final_error_m"].get<double>(), 1.5, 1e-12);
   EXPECT_NEAR(sum_num(g.summary, "mean_error_m"), 1.0, 1e-12);  // mean of the per-tag final errors
@@ -335,8 +398,8 @@ TEST(EvalMontage, StrideErrorAgainstTruthSteps) {
   }
   lines.push_back(test::step_line("W1", 1.0 + 9.0, 0.7));  // an extra step far from any true one
   lines.push_back(estimate_line("montage", "W1", "W1_origin", "W1", 2.0, {0.7, 0.0}));
-  const GroupResult g = evaluate(truth, test::parse_lines(lines), {}).groups.at(0);
-  ASSERT_EQ(g.family, Family::Montage);
+  const GroupResult g = evaluate(scene_of(truth, "montage"), test::parse_lines(lines), {}).groups.at(0);
+  ASSERT_EQ(g.family, "montage");
   EXPECT_EQ(g.summary["steps_true"], 10);
   EXPECT_EQ(g.summary["steps_detected"], 10);
   EXPECT_EQ(g.summary["steps_matched"], 9);
@@ -370,11 +433,11 @@ TEST(EvalInput, PluginFilterAndForcedMetric) {
   const auto file = test::parse_lines({estimate_line("one", "", "world", "B", 1, {3, 0}), estimate_line("two", "", "world", "C", 1, {0, 3})});
   EvalOptions o;
   o.plugins = {"two", "three"};
-  o.metric = Family::Spyloc;
+  o.metric = "spyloc";
   const EvalResult r = evaluate(truth, file, o);
   ASSERT_EQ(r.groups.size(), 1u);
   EXPECT_EQ(r.groups[0].plugin, "two");
-  EXPECT_EQ(r.groups[0].family, Family::Spyloc);
+  EXPECT_EQ(r.groups[0].family, "spyloc");
   EXPECT_NEAR(sum_num(r.groups[0].summary, "mean_error_m"), std::hypot(0.0, 1.0), 1e-12);
   ASSERT_EQ(r.warnings.size(), 1u);
   EXPECT_NE(r.warnings[0].find("plugin 'three'"), std::string::npos);

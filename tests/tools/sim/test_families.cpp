@@ -77,7 +77,8 @@ void read_all_streams(const scene::Scene& sc) {
 }
 
 TEST(SimFamilies, EveryFamilyWritesALoadableScene) {
-  for (const auto& fam : families()) {
+  for (const Family* famp : families()) {
+    const Family& fam = *famp;
     for (Difficulty d : {Difficulty::Easy, Difficulty::Hard}) {
       SCOPED_TRACE(fam.name + "/" + to_string(d));
       const std::string dir = temp_dir("family_" + fam.name + "_" + to_string(d));

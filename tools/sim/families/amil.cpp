@@ -131,3 +131,23 @@ Simulation make_amil(const FamilyOptions& opts) {
 }
 
 }  // namespace locus::sim
+
+// ------------------------------------------------------------------------------------------ registration
+// The family's entry in the table of `locus simulate` (generated from this folder, families.hpp).
+namespace locus::sim::registered_families {
+
+const Family& amil() {
+  static const Family family{
+      "amil",
+      "AMIL field test (paper 004): a player draws triangles on a table and beeps (18-22 kHz, 50 ms) at the "
+      "pauses; 12 listeners on a 1.22 m grid in a 3x5 m hallway; player IMU",
+      {{"gestures", "int", "1", "triangles drawn (1 or 3)"},
+       {"side_m", "double", "0.305", "triangle half-base and height (paper: 30.5 cm)"},
+       {"speed_mps", "double", "0.45", "mean stroke speed (min-jerk strokes)"},
+       {"pause_min_s", "double", "0.4", "shortest pause at a corner (the beep is played in it)"},
+       {"pause_max_s", "double", "0.7", "longest pause at a corner"}},
+      make_amil};
+  return family;
+}
+
+}  // namespace locus::sim::registered_families

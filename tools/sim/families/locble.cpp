@@ -117,3 +117,23 @@ Simulation make_locble(const FamilyOptions& opts) {
 }
 
 }  // namespace locus::sim
+
+// ------------------------------------------------------------------------------------------ registration
+// The family's entry in the table of `locus simulate` (generated from this folder, families.hpp).
+namespace locus::sim::registered_families {
+
+const Family& locble() {
+  static const Family family{
+      "locble",
+      "LocBLE (paper 003): an observer walks an L (3.5-5 m) scanning BLE; 1-6 tags 4-9 m away, some clustered "
+      "within 1 m of the target; log-distance RSS with LOS/p-LOS/NLOS exponents; IMU; no audio",
+      {{"tags", "int", "3", "number of tags (1..6); tag1 is the target"},
+       {"clustered", "int", "min(2, tags-1)", "tags placed within 0.3-1 m of the target"},
+       {"env", "los|plos|nlos|mixed", "los", "propagation class (mixed: NLOS then LOS, people crossing)"},
+       {"turn", "left|right", "left", "direction of the L's turn (the target is on that side)"},
+       {"interval_s", "double", "0.1", "advertising interval (paper: 10 Hz)"}},
+      make_locble};
+  return family;
+}
+
+}  // namespace locus::sim::registered_families

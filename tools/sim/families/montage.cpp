@@ -110,3 +110,26 @@ Simulation make_montage(const FamilyOptions& opts) {
 }
 
 }  // namespace locus::sim
+
+// ------------------------------------------------------------------------------------------ registration
+// The family's entry in the table of `locus simulate` (generated from this folder, families.hpp).
+namespace locus::sim::registered_families {
+
+const Family& montage() {
+  static const Family family{
+      "montage",
+      "Montage (paper 002): 2-8 walkers in formation (pairs side by side), every phone emits its Gold code "
+      "(r=5) on 19 kHz at once each round; IMU with magnetometer; truth_steps.csv",
+      {{"walkers", "int", "4", "number of walkers (2..8)"},
+       {"path", "straight|L|loop", "L", "the formation's route"},
+       {"period_s", "double", "1.0", "ranging round period (all phones emit together)"},
+       {"spacing_m", "double", "1.5", "side-by-side spacing in a pair"},
+       {"row_gap_m", "double", "2.0", "distance between pairs (one behind the other)"},
+       {"chip_samples", "int", "100", "samples per Gold chip (paper example: 100)"},
+       {"carrier_hz", "double", "19000", "BPSK carrier"},
+       {"room", "none|hall", "none", "free field (outdoor) or a 40x30x6 m hall"}},
+      make_montage};
+  return family;
+}
+
+}  // namespace locus::sim::registered_families

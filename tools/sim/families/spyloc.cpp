@@ -136,3 +136,24 @@ Simulation make_spyloc(const FamilyOptions& opts) {
 }
 
 }  // namespace locus::sim
+
+// ------------------------------------------------------------------------------------------ registration
+// The family's entry in the table of `locus simulate` (generated from this folder, families.hpp).
+namespace locus::sim::registered_families {
+
+const Family& spyloc() {
+  static const Family family{
+      "spyloc",
+      "SpyLoc (paper 001): a walker with a phone, 3-4 anchored beacons sending radio sync + 10-tone 18-20.25 kHz "
+      "beeps; an interior wall makes NLOS stretches; IMU 50 Hz; truth_steps.csv, truth_los.csv",
+      {{"beacons", "int", "3", "number of beacons (3 or 4)"},
+       {"beep_period_s", "double", "1.0", "time between beeps of one beacon"},
+       {"sync_delay_s", "double", "0.05", "radio message to beep delay (known)"},
+       {"pace", "normal|fast", "normal", "step frequency 1.7 or 2.2 Hz"},
+       {"nlos_db", "double", "20", "direct-path attenuation behind the wall"},
+       {"laps", "int", "1", "laps of the 16x8 m loop"}},
+      make_spyloc};
+  return family;
+}
+
+}  // namespace locus::sim::registered_families

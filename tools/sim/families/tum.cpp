@@ -151,3 +151,20 @@ Simulation make_tum(const FamilyOptions& opts) {
 }
 
 }  // namespace locus::sim
+
+// ------------------------------------------------------------------------------------------ registration
+// The family's entry in the table of `locus simulate` (generated from this folder, families.hpp).
+namespace locus::sim::registered_families {
+
+const Family& tum() {
+  static const Family family{
+      "tum",
+      "TUM (paper 000): four two-mic devices in a 5.3x6x3.5 m room, each emits its own 2-8 kHz 40 ms chirp in "
+      "turn; static or the elliptical track (31x58 cm, 5.9 s/round); IMU attitude",
+      {{"track", "static|ellipse", "static", "the moving device is static or rides the elliptical track"},
+       {"round_s", "double", "0.333", "period of one tone-exchange round (all four devices)"}},
+      make_tum};
+  return family;
+}
+
+}  // namespace locus::sim::registered_families

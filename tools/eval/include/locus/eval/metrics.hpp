@@ -1,6 +1,8 @@
-// The metric families (one per paper, plus generic position error) and the evaluation of an
-// estimates file against a scene's truth. Results are plain JSON objects so the table printer, the
-// --json writer and the threshold checks share one representation; docs/eval.md lists every key.
+// The evaluation of an estimates file against a scene's truth. How a group of estimates is scored is
+// a metric (one per paper, plus generic position error) registered by its own file,
+// tools/eval/metrics/<name>.cpp (locus/eval/metric.hpp); this header is what every caller needs.
+// Results are plain JSON objects so the table printer, the --json writer and the threshold checks
+// share one representation; docs/eval.md lists every key.
 #pragma once
 
 #include <optional>
@@ -15,23 +17,11 @@
 
 namespace locus::eval {
 
-enum class Family {
-  Position,  ///< generic: per-estimate position error in any frame
-  Tum,       ///< TUM Eq. 23: mean absolute pairwise distance error per snapshot
-  Amil,      ///< AMIL: per-listener direction / distance / position error, listeners located
-  Montage,   ///< Montage: stride error (step events vs truth_steps.csv) and trace deviation
-  Spyloc,    ///< SpyLoc: position error CDF (median, 80th, 90th), LoS/NLoS split when flagged
-  Locble,    ///< LocBLE: per-tag position error of the final estimate
-};
-
-std::string_view family_name(Family f) noexcept;
-std::optional<Family> family_from_name(std::string_view name) noexcept;
-/// Auto-detection from a localizer instance name (contains tum/spyloc/montage/locble/amil,
-/// case-insensitive) or else its frame (player_start → AMIL, observer_start → LocBLE); else Position.
-Family detect_family(std::string_view plugin, std::string_view frame) noexcept;
-
 struct EvalOptions {
-  std::optional<Family> metric;        ///< force one family for every plugin (else auto-detect)
+  /// The metric for every plugin (`--metric`, a registered name: metric_names()). Unset: the
+  /// scene's `environment.family` (TruthData::family); neither is an InputError. Never guessed
+  /// from a plugin's instance name.
+  std::optional<std::string> metric;
   std::vector<std::string> plugins;    ///< score only these plugin instances (empty = all)
   double snapshot_tolerance_s = 1e-3;  ///< estimates of one plugin this close in t_s form one snapshot
   double step_match_tolerance_s = 0.3; ///< a step event matches a true step this close in true time
@@ -49,14 +39,14 @@ Stats stats_of(std::vector<double> values);
 
 /// The score of one plugin instance.
 struct GroupResult {
-  Family family = Family::Position;
+  std::string family;                   ///< name of the metric that scored it ("amil", "position", ...)
   std::string plugin;
   std::vector<std::string> references;  ///< distinct references of its estimates
   std::vector<std::string> frames;      ///< distinct frames
   /// One object per target (expected or estimated): {"target": id, "status": "ok"|"no estimate"|
   /// "unknown target"|"no truth", "estimates": n, <family columns>...}; NaN-valued columns are null.
   nlohmann::ordered_json targets = nlohmann::ordered_json::array();
-  /// Family summary: counts and statistics (docs/eval.md); thresholds are checked against these.
+  /// Metric summary: counts and statistics (docs/eval.md); thresholds are checked against these.
   nlohmann::ordered_json summary = nlohmann::ordered_json::object();
   /// Extra family data (TUM per-snapshot errors, SpyLoc CDF, Montage steps, ...).
   nlohmann::ordered_json details = nlohmann::ordered_json::object();
@@ -73,9 +63,11 @@ struct EvalResult {
   std::vector<std::string> warnings;    ///< not tied to one plugin (e.g. no estimates at all)
 };
 
-/// Scores every plugin of `estimates` (or those in options.plugins). Throws InputError for estimates
-/// the scorer cannot interpret (unknown frame name, a frame that needs a reference without one),
-/// naming file:line.
+/// Scores every plugin of `estimates` (or those in options.plugins) with the metric options.metric
+/// or truth.family names. Throws InputError for estimates the scorer cannot interpret (unknown frame
+/// name, a frame that needs a reference without one), naming file:line, and when no registered
+/// metric is named (no --metric and no environment.family, or an unknown name: the message lists
+/// the known ones).
 EvalResult evaluate(const TruthData& truth, const EstimatesFile& estimates, const EvalOptions& options);
 
 }  // namespace locus::eval

@@ -77,6 +77,10 @@ struct TruthLos {
 struct TruthData {
   std::string scene_dir;
   std::string scene_name;
+  /// The scene's `environment.family` (scene.yaml): which system's experiment it is, and so which
+  /// metric scores it when `--metric` is not given ("" = the scene names none). `locus simulate`
+  /// writes it; so does any generator that follows docs/scene-format.md.
+  std::string family;
   std::vector<TruthObject> objects;           ///< devices, then emitters, in scene order
   std::map<std::string, TruthTrack> tracks;   ///< by object id (truth.csv)
   std::map<std::string, ClockModel> clocks;   ///< by device id; absent = ideal clock

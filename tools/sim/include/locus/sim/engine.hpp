@@ -235,7 +235,7 @@ struct Simulation {
   std::optional<Eigen::Vector3d> magnetic_field_world_ut;
   std::string environment_yaml;           ///< extra free-form environment entries (YAML mapping text); the
                                           ///< room size is added automatically
-  std::string family;                     ///< informational (written to the environment mapping)
+  std::string family;                     ///< the system's name, written as environment.family (picks the eval metric)
   /// Extra evaluation-only files: name (relative to the scene dir) → full text, written verbatim by
   /// SceneSimulator::write (e.g. truth_steps.csv of the walking families, docs/simulator.md).
   std::map<std::string, std::string> extra_files;

@@ -2,8 +2,11 @@
 // of the papers' experiments (devices, trajectories, emission protocol, room, noise, clocks).
 // `locus simulate FAMILY OUT --seed N --difficulty normal -o key=value` runs one.
 //
-// Adding a family: write `Simulation make_<name>(const FamilyOptions&)` in tools/sim/families/<name>.cpp,
-// declare it below and add one line to the table in tools/sim/families/families.cpp.
+// Adding a family is adding one file, tools/sim/families/<name>.cpp, that defines
+// `const Family& locus::sim::registered_families::<name>()` (its name, description, options and make
+// function). tools/sim/CMakeLists.txt globs that folder and generates the table families() from the
+// file names (cmake/LocusTable.cmake). The name is the one the scene's `environment.family`, the eval
+// metric (tools/eval/metrics/<name>.cpp) and the replay config (config/<name>.yaml) use.
 // Difficulty sets the shared knobs through difficulty_profile(); a family may scale them.
 #pragma once
 
@@ -80,8 +83,8 @@ struct Family {
   std::function<Simulation(const FamilyOptions&)> make;
 };
 
-/// Every built-in family, in display order.
-const std::vector<Family>& families();
+/// Every registered family, in name order (generated from tools/sim/families/*.cpp).
+const std::vector<const Family*>& families();
 /// nullptr when unknown.
 const Family* find_family(std::string_view name);
 
@@ -89,19 +92,5 @@ const Family* find_family(std::string_view name);
 scene::ClockTruth draw_clock(const DifficultyProfile& p, Rng& rng);
 /// Applies a profile's acoustic knobs (noise, room reflection/order if a room is set) to `a`.
 void apply_profile(const DifficultyProfile& p, AcousticModel& a);
-
-// ------------------------------------------------------------------------------------------ families
-/// AMIL field test (paper 004): a player draws triangles on a table and beeps at the pauses,
-/// 12 listeners on a 1.22 m grid. Options: gestures (1|3), side_m, speed_mps, pause_min_s, pause_max_s.
-Simulation make_amil(const FamilyOptions& opts);
-/// TUM (paper 000): four two-mic devices in a 5.3×6×3.5 m room, each emits its own chirp in turn;
-/// track = static | ellipse (the moving device rides a 31×58 cm elliptical track, 5.9 s per round).
-Simulation make_tum(const FamilyOptions& opts);
-/// Montage (paper 002): walkers in formation, Gold-coded 19 kHz tones emitted together each round.
-Simulation make_montage(const FamilyOptions& opts);
-/// SpyLoc (paper 001): a walker, 3-4 anchored beacons with radio sync + multitone beeps, NLOS wall.
-Simulation make_spyloc(const FamilyOptions& opts);
-/// LocBLE (paper 003): an observer walking an L scans 1-6 BLE tags (some clustered); no audio.
-Simulation make_locble(const FamilyOptions& opts);
 
 }  // namespace locus::sim

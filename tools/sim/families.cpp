@@ -1,4 +1,5 @@
-// The family table, difficulty profiles and option parsing shared by every family (families.hpp).
+// Difficulty profiles and option parsing shared by every family (families.hpp). The families
+// themselves are one file each in tools/sim/families/; their table is generated (CMakeLists.txt).
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -137,61 +138,9 @@ void FamilyOptions::finish(const std::string& family) const {
 
 // ------------------------------------------------------------------------------------------ table
 
-const std::vector<Family>& families() {
-  static const std::vector<Family> table = {
-      {"amil",
-       "AMIL field test (paper 004): a player draws triangles on a table and beeps (18-22 kHz, 50 ms) at the "
-       "pauses; 12 listeners on a 1.22 m grid in a 3x5 m hallway; player IMU",
-       {{"gestures", "int", "1", "triangles drawn (1 or 3)"},
-        {"side_m", "double", "0.305", "triangle half-base and height (paper: 30.5 cm)"},
-        {"speed_mps", "double", "0.45", "mean stroke speed (min-jerk strokes)"},
-        {"pause_min_s", "double", "0.4", "shortest pause at a corner (the beep is played in it)"},
-        {"pause_max_s", "double", "0.7", "longest pause at a corner"}},
-       make_amil},
-      {"tum",
-       "TUM (paper 000): four two-mic devices in a 5.3x6x3.5 m room, each emits its own 2-8 kHz 40 ms chirp in "
-       "turn; static or the elliptical track (31x58 cm, 5.9 s/round); IMU attitude",
-       {{"track", "static|ellipse", "static", "the moving device is static or rides the elliptical track"},
-        {"round_s", "double", "0.333", "period of one tone-exchange round (all four devices)"}},
-       make_tum},
-      {"montage",
-       "Montage (paper 002): 2-8 walkers in formation (pairs side by side), every phone emits its Gold code "
-       "(r=5) on 19 kHz at once each round; IMU with magnetometer; truth_steps.csv",
-       {{"walkers", "int", "4", "number of walkers (2..8)"},
-        {"path", "straight|L|loop", "L", "the formation's route"},
-        {"period_s", "double", "1.0", "ranging round period (all phones emit together)"},
-        {"spacing_m", "double", "1.5", "side-by-side spacing in a pair"},
-        {"row_gap_m", "double", "2.0", "distance between pairs (one behind the other)"},
-        {"chip_samples", "int", "100", "samples per Gold chip (paper example: 100)"},
-        {"carrier_hz", "double", "19000", "BPSK carrier"},
-        {"room", "none|hall", "none", "free field (outdoor) or a 40x30x6 m hall"}},
-       make_montage},
-      {"spyloc",
-       "SpyLoc (paper 001): a walker with a phone, 3-4 anchored beacons sending radio sync + 10-tone 18-20.25 kHz "
-       "beeps; an interior wall makes NLOS stretches; IMU 50 Hz; truth_steps.csv, truth_los.csv",
-       {{"beacons", "int", "3", "number of beacons (3 or 4)"},
-        {"beep_period_s", "double", "1.0", "time between beeps of one beacon"},
-        {"sync_delay_s", "double", "0.05", "radio message to beep delay (known)"},
-        {"pace", "normal|fast", "normal", "step frequency 1.7 or 2.2 Hz"},
-        {"nlos_db", "double", "20", "direct-path attenuation behind the wall"},
-        {"laps", "int", "1", "laps of the 16x8 m loop"}},
-       make_spyloc},
-      {"locble",
-       "LocBLE (paper 003): an observer walks an L (3.5-5 m) scanning BLE; 1-6 tags 4-9 m away, some clustered "
-       "within 1 m of the target; log-distance RSS with LOS/p-LOS/NLOS exponents; IMU; no audio",
-       {{"tags", "int", "3", "number of tags (1..6); tag1 is the target"},
-        {"clustered", "int", "min(2, tags-1)", "tags placed within 0.3-1 m of the target"},
-        {"env", "los|plos|nlos|mixed", "los", "propagation class (mixed: NLOS then LOS, people crossing)"},
-        {"turn", "left|right", "left", "direction of the L's turn (the target is on that side)"},
-        {"interval_s", "double", "0.1", "advertising interval (paper: 10 Hz)"}},
-       make_locble},
-  };
-  return table;
-}
-
 const Family* find_family(std::string_view name) {
-  for (const auto& f : families())
-    if (f.name == name) return &f;
+  for (const Family* f : families())
+    if (f->name == name) return f;
   return nullptr;
 }
 
