@@ -1,14 +1,19 @@
-// Registers the built-in links and network event outputs: link "mqtt" and output "mqtt" (link/mqtt).
+// Registers the built-in links and network event outputs: link "mqtt" and output "mqtt" (link/mqtt),
+// or, in a build without MQTT (LOCUS_WITH_MQTT=OFF or libmosquitto not found), "mqtt" as not built in.
 #include "links.hpp"
 
 #include <memory>
 
+#include "locus/build_options.hpp"
+#if LOCUS_HAVE_MQTT
 #include "mqtt/mqtt_link.hpp"
 #include "mqtt/mqtt_output.hpp"
+#endif
 
 namespace locus::links {
 
 void register_builtin_links(Registry& registry) {
+#if LOCUS_HAVE_MQTT
   registry.add_link(LinkDescriptor{
       "mqtt",
       "MQTT broker between boards (libmosquitto): reconnects, re-subscribes, queues while offline; "
@@ -29,6 +34,10 @@ void register_builtin_links(Registry& registry) {
                                                        log);
       },
   });
+#else
+  registry.add_not_built(
+      NotBuiltBackend{"mqtt", build::not_built_reason(*build::find_optional_backend("mqtt"))});
+#endif
 }
 
 }  // namespace locus::links

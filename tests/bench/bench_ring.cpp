@@ -6,10 +6,13 @@
 // Items are frames; bytes are frames * 8 (the audio moved through the ring once).
 // Run: build/bin/locus_bench_ring --benchmark_min_time=0.2   (see docs/benchmarks.md)
 // LOCUS_BENCH_ITERATIONS=<n> fixes the iteration count (e.g. to count instructions under callgrind).
+// Builds without JACK support (LOCUS_WITH_JACK; LOCUS_BENCH_JACK_RING unset) leave the jack rows out.
 #include "locus/audio_ring.hpp"
 
 #include <benchmark/benchmark.h>
+#if LOCUS_BENCH_JACK_RING
 #include <jack/ringbuffer.h>
+#endif
 
 #include <algorithm>
 #include <atomic>
@@ -74,6 +77,7 @@ struct BoostRing {
   INLINE std::size_t pop_frame(float* dst) { return q.pop(*reinterpret_cast<StereoFrame*>(dst)); }
 };
 
+#if LOCUS_BENCH_JACK_RING
 struct JackRing {
   static constexpr const char* kName = "jack";
   static constexpr std::size_t kFrameBytes = sizeof(StereoFrame);
@@ -95,6 +99,7 @@ struct JackRing {
     return jack_ringbuffer_read(rb, reinterpret_cast<char*>(dst), frames * kFrameBytes) / kFrameBytes;
   }
 };
+#endif  // LOCUS_BENCH_JACK_RING
 
 std::vector<float> source_block(std::size_t frames) {
   std::vector<float> v(frames * kChannels);
@@ -194,7 +199,9 @@ void register_case(const char* what, int block, bool real_time) {
   };
   reg(static_cast<LocusRing*>(nullptr));
   reg(static_cast<BoostRing*>(nullptr));
+#if LOCUS_BENCH_JACK_RING
   reg(static_cast<JackRing*>(nullptr));
+#endif
 }
 
 template <typename Ring> struct FrameBench { static void run(benchmark::State& s) { BM_Frame<Ring>(s); } };

@@ -720,5 +720,57 @@ devices:
   EXPECT_EQ(errs[1].message, "missing required key 'sink'");
 }
 
+// ------------------------------------------------------------------------------ backends not built in
+
+// A backend the build lacks (LOCUS_WITH_<X>=OFF, or AUTO and its library missing) is registered as not
+// built in: a config naming it gets that reason at its file:line:column, in every section a backend
+// can fill, instead of "unknown ...". Fake entries, so this runs in every build (the real ones are
+// checked in tests/hal/test_optional_backends.cpp).
+class NotBuiltTest : public ConfigSectionsTest {
+ protected:
+  NotBuiltTest() {
+    registry.add_not_built({"fakejack", "FAKEJACK support was not built in (LOCUS_WITH_FAKEJACK=OFF)"});
+    registry.add_not_built({"fakemqtt", "FAKEMQTT support was not built in (LOCUS_WITH_FAKEMQTT=AUTO and "
+                                        "libfake not found: pkg-config module 'fake', Debian package libfake-dev)"});
+  }
+};
+
+TEST_F(NotBuiltTest, EverySectionSaysTheBackendWasNotBuiltIn) {
+  const auto e = errors(R"(link: {type: fakemqtt, params: {host: broker}}
+outputs:
+  - type: fakemqtt
+devices:
+  - id: A
+    audio: {source: fakejack, params: {client_name: locus}}
+    ble: {source: fakejack}
+    playback: {sink: fakejack}
+)");
+  const std::string jack = "FAKEJACK support was not built in (LOCUS_WITH_FAKEJACK=OFF)";
+  const std::string mqtt = "FAKEMQTT support was not built in (LOCUS_WITH_FAKEMQTT=AUTO and libfake not found: "
+                           "pkg-config module 'fake', Debian package libfake-dev)";
+  ASSERT_EQ(e.size(), 5u);
+  EXPECT_CONFIG_ERROR(e[0], 1, 14, "link.type", "link 'fakemqtt' is not available: " + mqtt);
+  EXPECT_CONFIG_ERROR(e[1], 3, 11, "outputs[0].type", "output 'fakemqtt' is not available: " + mqtt);
+  EXPECT_CONFIG_ERROR(e[2], 6, 21, "devices[0].audio.source", "audio source 'fakejack' is not available: " + jack);
+  EXPECT_CONFIG_ERROR(e[3], 7, 19, "devices[0].ble.source", "ble source 'fakejack' is not available: " + jack);
+  EXPECT_CONFIG_ERROR(e[4], 8, 22, "devices[0].playback.sink",
+                      "playback sink 'fakejack' is not available: " + jack);
+  EXPECT_EQ(e[2].format(), "test.yaml:6:21: devices[0].audio.source: audio source 'fakejack' is not available: " + jack);
+}
+
+TEST_F(NotBuiltTest, OtherUnknownNamesStayUnknown) {
+  // Only the names recorded as not built in get the reason; a typo still gets "did you mean".
+  const auto e = errors(R"(devices:
+  - id: A
+    audio: {source: fakejak}
+    playback: {sink: speakr}
+)");
+  ASSERT_EQ(e.size(), 2u);
+  EXPECT_CONFIG_ERROR(e[0], 3, 21, "devices[0].audio.source",
+                      "unknown audio source 'fakejak' (registered: synth)");
+  EXPECT_CONFIG_ERROR(e[1], 4, 22, "devices[0].playback.sink",
+                      "unknown playback sink 'speakr'; did you mean 'speaker'? (registered: speaker)");
+}
+
 }  // namespace
 }  // namespace locus

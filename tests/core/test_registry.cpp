@@ -182,5 +182,51 @@ TEST(Registry, Sources) {
   EXPECT_EQ(r.sources().size(), 1u);
 }
 
+TEST(Registry, NotBuiltBackends) {
+  // A backend the build lacks (LOCUS_WITH_<X>) is recorded with its reason; factories report it.
+  Registry r;
+  r.add_source(SourceDescriptor{"null", "silence", {}, [] { return std::make_unique<test::NullSource>(); }});
+  r.add_not_built(NotBuiltBackend{"jack", "JACK support was not built in (LOCUS_WITH_JACK=OFF)"});
+  ASSERT_NE(r.find_not_built("jack"), nullptr);
+  EXPECT_EQ(r.find_not_built("jack")->reason, "JACK support was not built in (LOCUS_WITH_JACK=OFF)");
+  EXPECT_EQ(r.find_not_built("null"), nullptr);
+  EXPECT_EQ(r.find_not_built("alsa"), nullptr);
+  EXPECT_EQ(r.find_source("jack"), nullptr);  // absent from every list of what can be created
+  ASSERT_EQ(r.not_built().size(), 1u);
+  EXPECT_EQ(r.not_built()[0].name, "jack");
+  try {
+    r.create_source("jack");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "audio source 'jack': JACK support was not built in (LOCUS_WITH_JACK=OFF)");
+  }
+  try {
+    r.create_sensor_source("jack");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "sensor source 'jack': JACK support was not built in (LOCUS_WITH_JACK=OFF)");
+  }
+  try {
+    r.create_source("alsa");  // neither registered nor known as not built in
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "unknown audio source 'alsa'");
+  }
+  const auto refused = [&](NotBuiltBackend b, const char* message) {
+    try {
+      r.add_not_built(std::move(b));
+      ADD_FAILURE() << "accepted: " << message;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_STREQ(e.what(), message);
+    }
+  };
+  refused({"jack", "again"}, "backend 'jack' is already registered as not built in");
+  refused({"null", "NULL support was not built in"},
+          "backend 'null' cannot be both not built in and registered as an audio source");
+  refused({"", "why"}, "cannot add a not-built backend without a name");
+  refused({"mqtt", ""}, "not-built backend 'mqtt' has no reason");
+  EXPECT_EQ(r.not_built().size(), 1u);
+}
+
 }  // namespace
 }  // namespace locus

@@ -190,6 +190,11 @@ int list_plugins(const std::vector<std::string>& plugin_dirs, bool json) {
     add_named("sinks", registry.sinks(), none);
     add_named("links", registry.links(), none);
     add_named("outputs", registry.outputs(), none);
+    // Optional backends this build lacks (LOCUS_WITH_<X>): what a config may not name, and why.
+    out["not_built"] = nlohmann::json::array();
+    for (const NotBuiltBackend& b : registry.not_built()) {
+      out["not_built"].push_back({{"name", b.name}, {"reason", b.reason}});
+    }
     for (const auto& entry : registry.plugins()) {
       const auto* d = entry.descriptor;
       out["plugins"].push_back({{"name", d->name}, {"kind", kind_name(d->kind)}, {"version", d->version},
@@ -222,6 +227,9 @@ int list_plugins(const std::vector<std::string>& plugin_dirs, bool json) {
   print_named(registry.sinks(), "playback-sink");
   print_named(registry.links(), "link");
   print_named(registry.outputs(), "output");
+  for (const NotBuiltBackend& b : registry.not_built()) {
+    std::cout << b.name << " not-built-in\n    " << b.reason << "\n";
+  }
   return status;
 }
 

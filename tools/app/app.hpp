@@ -35,7 +35,8 @@ void add_run_options(CLI::App& cmd, RunOptions& opts);
 /// output before returning.
 int run_node(const RunOptions& opts);
 
-/// Lists built-in and loaded plugins (and audio sources) with their parameter schemas.
+/// Lists built-in and loaded plugins (and audio sources) with their parameter schemas, then the
+/// optional backends this build lacks ("jack not-built-in" + the reason; JSON: "not_built").
 int list_plugins(const std::vector<std::string>& plugin_dirs, bool json);
 
 /// Validates a config and prints every error; 0 when valid, 2 otherwise.

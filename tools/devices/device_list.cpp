@@ -8,10 +8,17 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "alsa/alsa_devices.hpp"
-#include "bluez/bluez_devices.hpp"
 #include "iio/iio_devices.hpp"
+#include "locus/build_options.hpp"
+#if LOCUS_HAVE_ALSA
+#include "alsa/alsa_devices.hpp"
+#endif
+#if LOCUS_HAVE_BLUEZ
+#include "bluez/bluez_devices.hpp"
+#endif
+#if LOCUS_HAVE_JACK
 #include "jack/jack_devices.hpp"
+#endif
 
 namespace locus::app {
 
@@ -30,12 +37,30 @@ void collect(std::vector<hal::DeviceInfo>& out, const char* backend,
 
 }  // namespace
 
+hal::DeviceInfo not_built_entry(std::string_view backend) {
+  const build::OptionalBackend* b = build::find_optional_backend(backend);
+  if (b == nullptr) throw std::invalid_argument("'" + std::string(backend) + "' is not an optional backend");
+  return hal::DeviceInfo{std::string(backend), kNotBuiltKind, "", build::not_built_reason(*b)};
+}
+
 std::vector<hal::DeviceInfo> list_all_devices(const DevicesOptions& o) {
   std::vector<hal::DeviceInfo> out;
+#if LOCUS_HAVE_ALSA
   collect(out, "alsa", [] { return hal::alsa::list_alsa_devices(); });
+#else
+  out.push_back(not_built_entry("alsa"));
+#endif
+#if LOCUS_HAVE_JACK
   collect(out, "jack", [&] { return hal::list_jack_ports(o.jack_server); });
+#else
+  out.push_back(not_built_entry("jack"));
+#endif
   collect(out, "iio", [&] { return hal::iio::list_iio_devices(o.iio_root); });
+#if LOCUS_HAVE_BLUEZ
   collect(out, "bluez", [] { return hal::list_bluez_adapters(); });
+#else
+  out.push_back(not_built_entry("bluez"));
+#endif
   return out;
 }
 

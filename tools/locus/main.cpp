@@ -3,6 +3,7 @@
 #include <iostream>
 
 #include "app.hpp"
+#include "locus/build_options.hpp"
 #include "locus/plugin.hpp"
 #include "subcommand.hpp"
 // Tool modules (tools/<name>/cli.hpp): one include and one line in `modules` below each.
@@ -30,7 +31,7 @@ int main(int argc, char** argv) {
   plugins->add_option("--plugin-dir", plugin_dirs, "also load every *.so in this directory (repeatable)");
   plugins->add_flag("--json", json, "machine-readable output");
 
-  auto* version = cli.add_subcommand("version", "print the version and plugin ABI");
+  auto* version = cli.add_subcommand("version", "print the version, the plugin ABI and the optional backends built in");
 
   std::vector<locus::app::Subcommand> modules = {
       locus::app::add_devices_command(cli),
@@ -54,6 +55,12 @@ int main(int argc, char** argv) {
   }
   if (*version) {
     std::cout << "locus " << LOCUS_VERSION << " (plugin ABI " << LOCUS_PLUGIN_ABI_VERSION << ")\n";
+    // Optional backends (LOCUS_WITH_<X>, cmake/LocusBackends.cmake): one line each, built in or why not.
+    std::cout << "optional backends:\n";
+    for (const locus::build::OptionalBackend& b : locus::build::kOptionalBackends) {
+      std::cout << "  " << b.name << std::string(8 - b.name.size(), ' ')
+                << (b.built ? "built in (" + std::string(b.library) + ")" : locus::build::not_built_reason(b)) << "\n";
+    }
     return 0;
   }
   return 0;

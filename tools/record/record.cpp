@@ -21,8 +21,11 @@
 #include "locus/fftw_planner.hpp"
 #include "locus/inprocess_link.hpp"
 #include "locus/logging.hpp"
-#include "alsa/alsa_source.hpp"
+#include "locus/build_options.hpp"
 #include "scene/scene_sources.hpp"
+#if LOCUS_HAVE_ALSA
+#include "alsa/alsa_source.hpp"
+#endif
 
 namespace fs = std::filesystem;
 
@@ -89,6 +92,7 @@ bool parse_sample_format(const std::string& s, scene::WavSampleFormat& out) {
 
 scene::WavSampleFormat native_sample_format(const std::string& source, const Params& params,
                                             const AudioSource* opened) {
+#if LOCUS_HAVE_ALSA
   if (const auto* alsa = dynamic_cast<const hal::alsa::AlsaSource*>(opened); alsa != nullptr) {
     // What the PCM was actually configured to (format: auto negotiates).
     switch (alsa->setup().format) {
@@ -99,6 +103,9 @@ scene::WavSampleFormat native_sample_format(const std::string& source, const Par
       case hal::alsa::SampleFormat::Float: return scene::WavSampleFormat::Float32;
     }
   }
+#else
+  (void)opened;  // no ALSA source can have been opened
+#endif
   if (source == "scene_audio") {
     // The scene's own file: keep its encoding (a replayed int16 recording stays int16, bit-exact).
     try {

@@ -63,6 +63,16 @@ struct OutputDescriptor {
   std::function<std::unique_ptr<EventOutput>(const Params&, Logger&)> create;
 };
 
+/// A backend this build does not have: an optional dependency switched off (LOCUS_WITH_JACK=OFF) or not
+/// found when the build was configured (cmake/LocusBackends.cmake). It is registered instead of its
+/// descriptors (hal/builtin.cpp, link/links.cpp), so that a config naming it is told why it is missing
+/// ("JACK support was not built in (LOCUS_WITH_JACK=OFF)") rather than "unknown audio source", and
+/// `locus devices` / `locus plugins` can list it as not built in.
+struct NotBuiltBackend {
+  std::string name;    ///< the name configs use: "jack" (audio source and playback sink), "mqtt" (link, output)
+  std::string reason;  ///< one sentence saying what is missing and why (no trailing period)
+};
+
 /// A plugin library could not be loaded or one of its descriptors is invalid. what() names the file
 /// and the reason (dlopen error, missing entry point, ABI mismatch, duplicate name, bad descriptor).
 class PluginLoadError : public std::runtime_error {
@@ -95,6 +105,11 @@ class Registry {
   void add_link(LinkDescriptor link);
   void add_output(OutputDescriptor output);
 
+  /// Records a backend this build lacks (see NotBuiltBackend). Throws std::invalid_argument on an empty
+  /// name or reason, a duplicate, or a name already registered as a source, sensor source, playback
+  /// sink, link or output (a backend is either built or not).
+  void add_not_built(NotBuiltBackend backend);
+
   /// dlopens `path` and adds every descriptor it enumerates. Throws PluginLoadError (nothing from a
   /// refused library is added). Returns the names added.
   std::vector<std::string> load_library(const std::string& path);
@@ -109,6 +124,9 @@ class Registry {
   const SinkDescriptor* find_sink(std::string_view name) const;
   const LinkDescriptor* find_link(std::string_view name) const;
   const OutputDescriptor* find_output(std::string_view name) const;
+  /// The backend of that name this build lacks, or nullptr. Lookups that fail (find_source, ...) are
+  /// followed by this one wherever a user is told what went wrong (config validation, create_*).
+  const NotBuiltBackend* find_not_built(std::string_view name) const;
 
   struct PluginEntry {
     const locus_plugin_descriptor* descriptor;
@@ -120,11 +138,13 @@ class Registry {
   const std::vector<SinkDescriptor>& sinks() const noexcept { return sinks_; }
   const std::vector<LinkDescriptor>& links() const noexcept { return links_; }
   const std::vector<OutputDescriptor>& outputs() const noexcept { return outputs_; }
+  const std::vector<NotBuiltBackend>& not_built() const noexcept { return not_built_; }
 
   std::unique_ptr<Detector> create_detector(std::string_view name) const;    ///< throws if absent/not a detector
   std::unique_ptr<Localizer> create_localizer(std::string_view name) const;  ///< throws if absent/not a localizer
-  std::unique_ptr<AudioSource> create_source(std::string_view name) const;   ///< throws if absent
-  std::unique_ptr<SensorSource> create_sensor_source(std::string_view name) const;  ///< throws if absent
+  /// Throw std::runtime_error if absent (with the reason when the backend was not built in).
+  std::unique_ptr<AudioSource> create_source(std::string_view name) const;
+  std::unique_ptr<SensorSource> create_sensor_source(std::string_view name) const;
 
  private:
   std::vector<PluginEntry> plugins_;
@@ -133,6 +153,7 @@ class Registry {
   std::vector<SinkDescriptor> sinks_;
   std::vector<LinkDescriptor> links_;
   std::vector<OutputDescriptor> outputs_;
+  std::vector<NotBuiltBackend> not_built_;
   std::vector<void*> libraries_;  // dlopen handles, closed in the destructor after instances are gone
 };
 

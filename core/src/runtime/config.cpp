@@ -375,6 +375,14 @@ class ConfigChecker {
   }
 
  private:
+  /// When `name` is a backend this build lacks (Registry::find_not_built): "audio source 'jack' is not
+  /// available: JACK support was not built in (LOCUS_WITH_JACK=OFF)". "" otherwise (then the caller
+  /// says "unknown ...").
+  std::string not_built(const std::string& what, const std::string& name) const {
+    const NotBuiltBackend* nb = registry_.find_not_built(name);
+    return nb == nullptr ? std::string() : what + " '" + name + "' is not available: " + nb->reason;
+  }
+
   void plugin_dirs(const Entry& e) {
     const auto items = c_.list(e, "plugin_dirs", "directories");
     if (!items) return;
@@ -465,9 +473,12 @@ class ConfigChecker {
           if (d.name == name) found = &d;
         }
         if (found == nullptr) {
-          std::string m = "unknown " + what + " '" + name + "'";
-          if (const std::string guess = closest(name, names); !guess.empty()) m += "; did you mean '" + guess + "'?";
-          m += names.empty() ? " (no " + what + "s are registered)" : " (registered: " + join(names) + ")";
+          std::string m = not_built(what, name);
+          if (m.empty()) {
+            m = "unknown " + what + " '" + name + "'";
+            if (const std::string guess = closest(name, names); !guess.empty()) m += "; did you mean '" + guess + "'?";
+            m += names.empty() ? " (no " + what + "s are registered)" : " (registered: " + join(names) + ")";
+          }
           c_.error(e->where(), child(path, name_key), std::move(m));
         }
       }
@@ -615,11 +626,14 @@ class ConfigChecker {
       if (auto name = c_.string(*src, child(path, "source"))) {
         source = registry_.find_source(*name);
         if (source == nullptr) {
-          std::vector<std::string> names;
-          for (const SourceDescriptor& d : registry_.sources()) names.push_back(d.name);
-          std::string m = "unknown audio source '" + *name + "'";
-          if (const std::string guess = closest(*name, names); !guess.empty()) m += "; did you mean '" + guess + "'?";
-          m += names.empty() ? std::string(" (no audio sources are registered)") : " (registered: " + join(names) + ")";
+          std::string m = not_built("audio source", *name);
+          if (m.empty()) {
+            std::vector<std::string> names;
+            for (const SourceDescriptor& d : registry_.sources()) names.push_back(d.name);
+            m = "unknown audio source '" + *name + "'";
+            if (const std::string guess = closest(*name, names); !guess.empty()) m += "; did you mean '" + guess + "'?";
+            m += names.empty() ? std::string(" (no audio sources are registered)") : " (registered: " + join(names) + ")";
+          }
           c_.error(src->where(), child(path, "source"), std::move(m));
         }
         a.source = std::move(*name);
@@ -670,13 +684,16 @@ class ConfigChecker {
           if (d.kind == kind) names.push_back(d.name);
         }
         if (source == nullptr || source->kind != kind) {
-          std::string m = source == nullptr ? "unknown " + kind_name + " source '" + *name + "'"
-                                            : "'" + *name + "' is " + with_article(sensor_kind_name(source->kind)) +
-                                                  " source, not " + with_article(kind_name) + " source";
-          if (const std::string guess = closest(*name, names); !guess.empty() && guess != *name) {
-            m += "; did you mean '" + guess + "'?";
+          std::string m = source == nullptr ? not_built(kind_name + " source", *name) : std::string();
+          if (m.empty()) {
+            m = source == nullptr ? "unknown " + kind_name + " source '" + *name + "'"
+                                  : "'" + *name + "' is " + with_article(sensor_kind_name(source->kind)) +
+                                        " source, not " + with_article(kind_name) + " source";
+            if (const std::string guess = closest(*name, names); !guess.empty() && guess != *name) {
+              m += "; did you mean '" + guess + "'?";
+            }
+            m += names.empty() ? " (no " + kind_name + " sources are registered)" : " (registered: " + join(names) + ")";
           }
-          m += names.empty() ? " (no " + kind_name + " sources are registered)" : " (registered: " + join(names) + ")";
           c_.error(src->where(), child(path, "source"), std::move(m));
           source = nullptr;
         }

@@ -113,7 +113,12 @@ std::unique_ptr<Localizer> Registry::create_localizer(std::string_view name) con
 
 std::unique_ptr<AudioSource> Registry::create_source(std::string_view name) const {
   const SourceDescriptor* s = find_source(name);
-  if (s == nullptr) throw std::runtime_error("unknown audio source '" + std::string(name) + "'");
+  if (s == nullptr) {
+    if (const NotBuiltBackend* nb = find_not_built(name)) {
+      throw std::runtime_error("audio source '" + std::string(name) + "': " + nb->reason);
+    }
+    throw std::runtime_error("unknown audio source '" + std::string(name) + "'");
+  }
   std::unique_ptr<AudioSource> p = s->create();
   if (!p) throw std::runtime_error("audio source '" + std::string(name) + "' failed to create an instance");
   return p;
@@ -137,7 +142,12 @@ const SensorSourceDescriptor* Registry::find_sensor_source(std::string_view name
 
 std::unique_ptr<SensorSource> Registry::create_sensor_source(std::string_view name) const {
   const SensorSourceDescriptor* s = find_sensor_source(name);
-  if (s == nullptr) throw std::runtime_error("unknown sensor source '" + std::string(name) + "'");
+  if (s == nullptr) {
+    if (const NotBuiltBackend* nb = find_not_built(name)) {
+      throw std::runtime_error("sensor source '" + std::string(name) + "': " + nb->reason);
+    }
+    throw std::runtime_error("unknown sensor source '" + std::string(name) + "'");
+  }
   std::unique_ptr<SensorSource> p = s->create();
   if (!p) throw std::runtime_error("sensor source '" + std::string(name) + "' failed to create an instance");
   if (p->kind() != s->kind) {
@@ -175,5 +185,28 @@ void Registry::add_output(OutputDescriptor output) { add_named(outputs_, std::mo
 const SinkDescriptor* Registry::find_sink(std::string_view name) const { return find_named(sinks_, name); }
 const LinkDescriptor* Registry::find_link(std::string_view name) const { return find_named(links_, name); }
 const OutputDescriptor* Registry::find_output(std::string_view name) const { return find_named(outputs_, name); }
+
+void Registry::add_not_built(NotBuiltBackend backend) {
+  if (backend.name.empty()) throw std::invalid_argument("cannot add a not-built backend without a name");
+  if (backend.reason.empty()) {
+    throw std::invalid_argument("not-built backend '" + backend.name + "' has no reason");
+  }
+  if (find_not_built(backend.name) != nullptr) {
+    throw std::invalid_argument("backend '" + backend.name + "' is already registered as not built in");
+  }
+  const char* registered_as = find_source(backend.name) != nullptr          ? "an audio source"
+                              : find_sensor_source(backend.name) != nullptr ? "a sensor source"
+                              : find_sink(backend.name) != nullptr          ? "a playback sink"
+                              : find_link(backend.name) != nullptr          ? "a link"
+                              : find_output(backend.name) != nullptr        ? "an output"
+                                                                            : nullptr;
+  if (registered_as != nullptr) {
+    throw std::invalid_argument("backend '" + backend.name + "' cannot be both not built in and registered as " +
+                                registered_as);
+  }
+  not_built_.push_back(std::move(backend));
+}
+
+const NotBuiltBackend* Registry::find_not_built(std::string_view name) const { return find_named(not_built_, name); }
 
 }  // namespace locus

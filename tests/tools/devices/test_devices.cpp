@@ -1,7 +1,9 @@
 // `locus devices`: list_all_devices asks every backend and never fails (a backend that cannot look
 // gives one "unavailable" entry); a fake IIO tree under --iio-root is listed; a JACK server that does
 // not run is reported, not thrown; the table is aligned and one line per entry; the JSON is an array
-// of {backend, kind, id, description}.
+// of {backend, kind, id, description}. An optional backend this build lacks (LOCUS_WITH_<X>) is one
+// "not-built-in" entry saying why; the checks follow the build's own table (locus/build_options.hpp),
+// so they hold in the full build and in the minimal one.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -11,6 +13,7 @@
 #include <sstream>
 
 #include "devices/device_list.hpp"
+#include "locus/build_options.hpp"
 
 namespace fs = std::filesystem;
 using locus::app::DevicesOptions;
@@ -64,15 +67,74 @@ TEST(Devices, EveryBackendAnswersAndTheFakeIioDeviceIsListed) {
     }
   }
   EXPECT_TRUE(iio);
-  // No such JACK server: one entry saying so, with a reason.
+  // No such JACK server: one entry saying so, with a reason (or, without JACK support, that it was not
+  // built in).
+  const bool jack_built = locus::build::find_optional_backend("jack")->built;
   std::size_t jack = 0;
   for (const auto& d : all) {
     if (d.backend != "jack") continue;
     ++jack;
-    EXPECT_NE(d.kind.find("unavailable"), std::string::npos) << d.kind;
+    EXPECT_EQ(d.kind, jack_built ? "unavailable" : locus::app::kNotBuiltKind) << d.kind;
     EXPECT_FALSE(d.description.empty());
   }
   EXPECT_EQ(jack, 1u);
+}
+
+TEST(Devices, ABackendNotBuiltInIsOneEntrySayingWhy) {
+  FakeIioTree tree;
+  DevicesOptions o;
+  o.iio_root = tree.root.string();
+  o.jack_server = "locus_no_such_server_" + std::to_string(::getpid());
+  const std::vector<DeviceInfo> all = locus::app::list_all_devices(o);
+  for (const char* name : {"alsa", "jack", "bluez"}) {
+    const locus::build::OptionalBackend* b = locus::build::find_optional_backend(name);
+    ASSERT_NE(b, nullptr) << name;
+    std::size_t entries = 0;
+    std::size_t not_built = 0;
+    for (const auto& d : all) {
+      if (d.backend != name) continue;
+      ++entries;
+      if (d.kind != locus::app::kNotBuiltKind) continue;
+      ++not_built;
+      EXPECT_EQ(d.id, "");
+      EXPECT_EQ(d.description, locus::build::not_built_reason(*b));
+    }
+    if (b->built) {
+      EXPECT_EQ(not_built, 0u) << name << " is built in";
+    } else {
+      EXPECT_EQ(entries, 1u) << name;
+      EXPECT_EQ(not_built, 1u) << name << " is not built in";
+    }
+  }
+}
+
+TEST(Devices, NotBuiltEntryNamesTheOptionAndTheLibrary) {
+  // The sentence itself, for a backend switched off and one whose library was not found.
+  const locus::build::OptionalBackend off{"jack", "JACK", "LOCUS_WITH_JACK", "libjack", false, "LOCUS_WITH_JACK=OFF"};
+  EXPECT_EQ(locus::build::not_built_reason(off), "JACK support was not built in (LOCUS_WITH_JACK=OFF)");
+  const locus::build::OptionalBackend built{"jack", "JACK", "LOCUS_WITH_JACK", "libjack", true, ""};
+  EXPECT_EQ(locus::build::not_built_reason(built), "");
+  // Every optional backend of this build: a reason naming its option exactly when it is not built.
+  for (const locus::build::OptionalBackend& b : locus::build::kOptionalBackends) {
+    const std::string why = locus::build::not_built_reason(b);
+    if (b.built) {
+      EXPECT_EQ(why, "") << b.name;
+    } else {
+      EXPECT_EQ(why.rfind(std::string(b.title) + " support was not built in (" + std::string(b.option) + "=", 0), 0u)
+          << why;
+    }
+  }
+  // The entry's shape and how the table prints it.
+  const DeviceInfo e = locus::app::not_built_entry("bluez");
+  EXPECT_EQ(e.backend, "bluez");
+  EXPECT_EQ(e.kind, "not-built-in");
+  EXPECT_EQ(e.id, "");
+  EXPECT_THROW(locus::app::not_built_entry("iio"), std::invalid_argument);  // iio is always built
+  const std::string t = locus::app::format_devices_table(
+      {{"jack", "not-built-in", "", "JACK support was not built in (LOCUS_WITH_JACK=OFF)"}});
+  EXPECT_NE(t.find("jack     not-built-in  -   JACK support was not built in (LOCUS_WITH_JACK=OFF)\n"),
+            std::string::npos)
+      << t;
 }
 
 TEST(Devices, TableIsAlignedOneLinePerEntry) {
