@@ -177,7 +177,7 @@ TEST_F(Steps, GeometryFromConfigKeepsAtMostMaxMicsAndTheOptionalParts) {
   EXPECT_EQ(spec.geometry.anchor_m[2], 3.0);
 }
 
-TEST_F(Steps, ConfigGeometryFillsWhatTheEmbedderDidNotGiveAndPointsAtItsStrings) {
+TEST_F(Steps, ConfigGeometryFillsWhatTheEmbedderDidNotGiveAndPointsAtItsSignals) {
   Config config;
   DeviceConfig a = device("A", ""), b = device("B", ""), t = device(std::string(kTemplateDeviceId), "");
   a.geometry = GeometryConfig{{{0.0, 0.0, 0.0}}, std::nullopt, std::nullopt};
@@ -187,15 +187,18 @@ TEST_F(Steps, ConfigGeometryFillsWhatTheEmbedderDidNotGiveAndPointsAtItsStrings)
   std::map<std::string, GeometrySpec> geometry;
   GeometrySpec given;
   given.geometry.mic_count = 7;
-  given.emits_json = R"([{"type":"lfm"}])";
+  SignalSpec lfm;
+  lfm.type = "lfm";
+  given.emits = {lfm};
   geometry.emplace("A", given);
   add_config_geometry(config, geometry);
   ASSERT_EQ(geometry.size(), 2u);  // the template gets none
   EXPECT_EQ(geometry.at("A").geometry.mic_count, 7u);  // the embedder's wins
   EXPECT_EQ(geometry.at("B").geometry.mic_count, 2u);
   for (const auto& [id, spec] : geometry) {
-    EXPECT_EQ(spec.geometry.emits_json, spec.emits_json.c_str()) << id;
-    EXPECT_EQ(spec.geometry.scene_emits_json, spec.scene_emits_json.c_str()) << id;
+    EXPECT_EQ(spec.geometry.emits.data(), spec.emits.data()) << id;
+    EXPECT_EQ(spec.geometry.emits.size(), spec.emits.size()) << id;
+    EXPECT_EQ(spec.geometry.scene_emits.data(), spec.scene_emits.data()) << id;
   }
   EXPECT_EQ(find_geometry(geometry, "B"), &geometry.at("B").geometry);
   EXPECT_EQ(find_geometry(geometry, "C"), nullptr);

@@ -99,6 +99,15 @@ EstimateRecord parse_estimate(const json& j) {
   e.distance_m = opt_number(j, "distance_m");
   e.std_m = opt_number(j, "std_m");
   e.confidence = opt_number(j, "confidence");
+  e.direction_std_rad = opt_number(j, "direction_std_rad");
+  e.distance_std_m = opt_number(j, "distance_std_m");
+  if (auto fl = j.find("flags"); fl != j.end() && !fl->is_null()) {
+    if (!fl->is_array()) throw LineError{"flags", std::string("key 'flags': expected a list of strings, got ") + kind_of(*fl)};
+    for (const json& f : *fl) {
+      if (!f.is_string()) throw LineError{"flags", std::string("key 'flags': element is ") + kind_of(f) + ", expected a string"};
+      e.flags.push_back(f.get<std::string>());
+    }
+  }
   auto los = j.find("los");
   if (los != j.end() && !los->is_null()) {
     if (!los->is_boolean()) throw LineError{"los", std::string("key 'los': expected true, false or null, got ") + kind_of(*los)};

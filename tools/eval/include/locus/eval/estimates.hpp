@@ -28,6 +28,9 @@ struct EstimateRecord {
   double distance_m = 0.0;
   double std_m = 0.0;
   double confidence = 0.0;
+  double direction_std_rad = 0.0;      ///< NaN when null or absent
+  double distance_std_m = 0.0;         ///< NaN when null or absent
+  std::vector<std::string> flags;      ///< optional `flags` list (docs/events.md)
   std::optional<bool> los;             ///< optional extra key `los` (SpyLoc: line of sight)
   int line = 0;                        ///< 1-based line in the file
 
