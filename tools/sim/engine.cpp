@@ -19,6 +19,8 @@
 #include <stdexcept>
 
 #include "locus/dsp/iir.hpp"
+#include "locus/sim/interference.hpp"
+#include "locus/sim/response.hpp"
 
 namespace locus::sim {
 
@@ -94,18 +96,7 @@ struct Source {
   BandLimit response;
 };
 
-std::vector<dsp::Biquad> design(const BandLimit& b, double fs) {
-  std::vector<dsp::Biquad> sos;
-  if (b.low_hz > 0.0) {
-    auto s = dsp::butter_highpass(b.order, b.low_hz, fs);
-    sos.insert(sos.end(), s.begin(), s.end());
-  }
-  if (b.high_hz > 0.0 && b.high_hz < 0.5 * fs) {
-    auto s = dsp::butter_lowpass(b.order, b.high_hz, fs);
-    sos.insert(sos.end(), s.begin(), s.end());
-  }
-  return sos;
-}
+std::vector<dsp::Biquad> design(const BandLimit& b, double fs) { return design_response(b, fs); }  // response.hpp
 
 // Pink noise: Paul Kellet's refined filter of white noise, scaled to unit RMS.
 class PinkFilter {
@@ -145,8 +136,21 @@ class PinkFilter {
 };
 
 struct Burst {
-  std::uint64_t k0, k1;  // frame range
+  std::uint64_t k0, k1;        // frame range
+  std::vector<double> wave;    // babble / music waveform (unit RMS, k1 − k0 samples); empty = white
 };
+
+// Centre frequency of an acoustic signal (air absorption): lfm mid-band, multitone mean, gold carrier.
+double centre_frequency_hz(const dsp::SignalSpec& s) {
+  if (s.type == "lfm") return 0.5 * (s.f0_hz + s.f1_hz);
+  if (s.type == "multitone" && !s.tones_hz.empty()) {
+    double m = 0.0;
+    for (double f : s.tones_hz) m += f;
+    return m / static_cast<double>(s.tones_hz.size());
+  }
+  if (s.type == "gold") return s.carrier_hz;
+  return 0.0;
+}
 
 // Everything needed to render one receiving device.
 class DeviceRenderer {
@@ -173,15 +177,20 @@ class DeviceRenderer {
     std::vector<dsp::SosFilter> mic_filters;
     const bool band = sim_.acoustics.band_limits && dev_.mic_response.enabled();
     for (std::size_t ch = 0; ch < channels_; ++ch) mic_filters.emplace_back(design(dev_.mic_response, fs_));
-    std::vector<Rng> noise_rng;
+    std::vector<Rng> noise_rng, self_rng;
     std::vector<PinkFilter> pink(channels_);
-    for (std::size_t ch = 0; ch < channels_; ++ch)
+    for (std::size_t ch = 0; ch < channels_; ++ch) {
       noise_rng.push_back(Rng::derive(sim_.seed, "noise/" + dev_.id + "/" + std::to_string(ch)));
+      self_rng.push_back(Rng::derive(sim_.seed, "selfnoise/" + dev_.id + "/" + std::to_string(ch)));
+    }
     const NoiseModel& nm = sim_.acoustics.noise;
     const double sigma = nm.enabled ? sim_.acoustics.level_at_1m / std::sqrt(2.0) / std::pow(10.0, nm.snr_db / 20.0) : 0.0;
     const double w_white = std::sqrt(1.0 - std::clamp(nm.pink_fraction, 0.0, 1.0));
     const double w_pink = std::sqrt(std::clamp(nm.pink_fraction, 0.0, 1.0));
     const double burst_gain = std::pow(10.0, nm.burst_db / 20.0);
+    const double self_sigma = nm.enabled && nm.self_noise_snr_db
+                                  ? sim_.acoustics.level_at_1m / std::sqrt(2.0) / std::pow(10.0, *nm.self_noise_snr_db / 20.0)
+                                  : 0.0;
 
     std::size_t next_contrib = 0;
     std::size_t next_burst = 0;
@@ -214,6 +223,13 @@ class DeviceRenderer {
           const Burst& br = bursts_[b];
           const std::uint64_t k0 = std::max(br.k0, start), k1 = std::min(br.k1, start + n);
           const double len = static_cast<double>(br.k1 - br.k0);
+          if (!br.wave.empty()) {  // babble / music: the same sound on every channel
+            for (std::size_t ch = 0; ch < channels_; ++ch)
+              for (std::uint64_t k = k0; k < k1; ++k)
+                acc[ch][static_cast<std::size_t>(k - start)] +=
+                    sigma * burst_gain * br.wave[static_cast<std::size_t>(k - br.k0)];
+            continue;
+          }
           for (std::size_t ch = 0; ch < channels_; ++ch) {
             Rng& rng = noise_rng[ch];
             for (std::uint64_t k = k0; k < k1; ++k) {
@@ -229,6 +245,7 @@ class DeviceRenderer {
         auto& a = acc[ch];
         for (std::size_t i = 0; i < n; ++i) {
           double v = band ? mic_filters[ch].process_double(a[i]) : a[i];
+          if (self_sigma > 0.0) v += self_sigma * self_rng[ch].normal();  // mic self-noise (electrical)
           v *= dev_.mic_gain;
           if (v > 1.0) {
             v = 1.0;
@@ -325,6 +342,7 @@ class DeviceRenderer {
     const NoiseModel& nm = sim_.acoustics.noise;
     if (nm.enabled && nm.bursts_per_minute > 0.0) {
       Rng rng = Rng::derive(sim_.seed, "bursts/" + dev_.id);
+      Rng wave_rng = Rng::derive(sim_.seed, "burstwave/" + dev_.id);
       const double mean_gap = 60.0 / nm.bursts_per_minute;
       double t = rng.exponential(mean_gap);
       const double total = static_cast<double>(frames_) / fs_;
@@ -332,7 +350,16 @@ class DeviceRenderer {
         const double d = rng.uniform(nm.burst_min_s, nm.burst_max_s);
         const auto k0 = static_cast<std::uint64_t>(t * fs_);
         const auto k1 = std::min<std::uint64_t>(frames_, static_cast<std::uint64_t>((t + d) * fs_) + 1);
-        if (k1 > k0 + 1) bursts_.push_back(Burst{k0, k1});
+        if (k1 > k0 + 1) {
+          Burst b{k0, k1, {}};
+          using K = NoiseModel::BurstKind;
+          if (nm.burst_kind != K::White) {
+            const bool babble = nm.burst_kind == K::Babble || (nm.burst_kind == K::Mixed && wave_rng.bernoulli(0.5));
+            b.wave = synth_interference(babble ? InterferenceKind::Babble : InterferenceKind::Music,
+                                        static_cast<std::size_t>(k1 - k0), fs_, wave_rng);
+          }
+          bursts_.push_back(std::move(b));
+        }
         t += d + rng.exponential(mean_gap);
       }
     }
@@ -359,6 +386,12 @@ class DeviceRenderer {
     path_windows(e, s, windows);
     const double te0 = e.t_start_true_s();
     const double base_gain = sim_.acoustics.level_at_1m * s.level * e.gain;
+    // air absorption at the signal's centre frequency: gain exp(−kappa·r)
+    const double fc = centre_frequency_hz((*s.emits)[static_cast<std::size_t>(e.signal_index)]);
+    const double kappa = sim_.acoustics.air_absorption && fc > 0.0
+                             ? air_absorption_db_per_m(fc, sim_.acoustics.temperature_c, sim_.acoustics.humidity_pct) *
+                                   std::log(10.0) / 20.0
+                             : 0.0;
     const double obstruct = obstruction_gain(e);
     const double rmin = sim_.acoustics.min_distance_m;
     const bool rx_static = dev_.trajectory->is_static();
@@ -421,7 +454,7 @@ class DeviceRenderer {
         }
         const double te = t - r / c_;
         const double v = ev.value(te - te0);
-        if (v != 0.0) out[i] += g / std::max(r, rmin) * v;
+        if (v != 0.0) out[i] += g / std::max(r, rmin) * v * (kappa > 0.0 ? std::exp(-kappa * r) : 1.0);
       }
     }
     if (sim_.acoustics.band_limits && s.response.enabled()) {
@@ -505,6 +538,22 @@ ImuReading KinematicImu::sample(const Simulation& sim, const DeviceModel& device
     r.mag_ut = m;
   }
   return r;
+}
+
+// ------------------------------------------------------------------------------------------ air absorption
+
+double air_absorption_db_per_m(double f, double temperature_c, double humidity_pct) {
+  // ISO 9613-1:1993, eqs. (3)-(5) and annex B (saturation vapour pressure), p_a = p_r = 101.325 kPa.
+  const double T = temperature_c + 273.15, T0 = 293.15, T01 = 273.16;
+  const double psat_rel = std::pow(10.0, -6.8346 * std::pow(T01 / T, 1.261) + 4.6151);
+  const double h = humidity_pct * psat_rel;  // molar concentration of water vapour, %
+  const double frO = 24.0 + 4.04e4 * h * (0.02 + h) / (0.391 + h);
+  const double frN = std::pow(T / T0, -0.5) * (9.0 + 280.0 * h * std::exp(-4.170 * (std::pow(T / T0, -1.0 / 3.0) - 1.0)));
+  const double f2 = f * f;
+  return 8.686 * f2 *
+         (1.84e-11 * std::sqrt(T / T0) +
+          std::pow(T / T0, -2.5) * (0.01275 * std::exp(-2239.1 / T) / (frO + f2 / frO) +
+                                    0.1068 * std::exp(-3352.0 / T) / (frN + f2 / frN)));
 }
 
 // ------------------------------------------------------------------------------------------ Simulation
@@ -706,7 +755,7 @@ WriteReport SceneSimulator::write(const std::string& out_dir) const {
         const ImuReading r = d.imu->sample(sim_, d, d.clock.true_from_local(local), rng);
         ImuSample s;
         s.device = DeviceId(d.id);
-        s.t_s = local;
+        s.t_s = std::max(0.0, local + r.stamp_offset_s);  // row-stamp jitter (ImuReading::stamp_offset_s)
         for (int i = 0; i < 3; ++i) {
           s.accel_mps2[static_cast<std::size_t>(i)] = static_cast<float>(r.accel_mps2[i]);
           s.gyro_radps[static_cast<std::size_t>(i)] = static_cast<float>(r.gyro_radps[i]);
