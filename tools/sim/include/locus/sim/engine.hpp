@@ -32,6 +32,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -64,6 +65,9 @@ struct EqSection {
 /// sections (the per-device ripple and high-frequency roll-off of a real transducer; see
 /// response.hpp for random per-device responses).
 struct BandLimit {
+  BandLimit() = default;
+  BandLimit(double low, double high, int order_ = 2, std::vector<EqSection> eq_ = {})
+      : low_hz(low), high_hz(high), order(order_), eq(std::move(eq_)) {}
   double low_hz = 0.0;
   double high_hz = 0.0;
   int order = 2;  ///< Butterworth order of each edge
