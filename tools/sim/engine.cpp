@@ -321,7 +321,16 @@ class DeviceRenderer {
   }
 
   void plan() {
-    const std::int64_t tail = (sim_.acoustics.band_limits ? static_cast<std::int64_t>(std::ceil(kFilterTail_s * fs_)) : 0);
+    std::int64_t tail = (sim_.acoustics.band_limits ? static_cast<std::int64_t>(std::ceil(kFilterTail_s * fs_)) : 0);
+    const auto& room = sim_.acoustics.room;
+    if (room && room->diffuse_tail) {
+      // the longest tail of any signal (lowest centre frequency: least air absorption)
+      double worst = 0.0;
+      for (const auto& src : sources_)
+        for (const auto& spec : *src.emits)
+          if (spec.acoustic()) worst = std::max(worst, diffuse_tail_params(centre_frequency_hz(spec)).end_s);
+      tail += static_cast<std::int64_t>(std::ceil(worst * fs_)) + 1;
+    }
     std::vector<PathWindow> w;
     for (std::size_t ei = 0; ei < sim_.emissions.size(); ++ei) {
       const Emission& e = sim_.emissions[ei];
@@ -361,6 +370,71 @@ class DeviceRenderer {
           bursts_.push_back(std::move(b));
         }
         t += d + rng.exponential(mean_gap);
+      }
+    }
+  }
+
+  struct TailParams {
+    double start_s = 0.0, tau_s = 0.0, end_s = 0.0, energy = 0.0;  // energy relative to the direct sound at 1 m
+  };
+  // Sabine diffuse tail of the room at frequency fc (Room::diffuse_tail).
+  TailParams diffuse_tail_params(double fc) const {
+    TailParams p;
+    const Room& room = *sim_.acoustics.room;
+    const Eigen::Vector3d& L = room.size_m;
+    const double V = L.prod(), S = 2.0 * (L.x() * L.y() + L.y() * L.z() + L.x() * L.z());
+    double mean_b2 = 0.0;
+    for (double b : room.reflection) mean_b2 += b * b / 6.0;
+    const double alpha = std::clamp(1.0 - mean_b2, 1e-3, 1.0);
+    const double m = sim_.acoustics.air_absorption && fc > 0.0
+                         ? air_absorption_db_per_m(fc, sim_.acoustics.temperature_c, sim_.acoustics.humidity_pct) / 4.343
+                         : 0.0;  // intensity attenuation per metre
+    const double A = S * alpha + 4.0 * m * V;
+    const double rt60 = 0.161 * V / A;
+    p.tau_s = rt60 / 6.91;  // amplitude e-folding time
+    p.start_s = std::max(1, room.max_order) * L.minCoeff() / c_;
+    p.end_s = p.start_s + 5.0 * p.tau_s;
+    p.energy = 16.0 * M_PI / A * std::exp(-2.0 * p.start_s / p.tau_s);
+    return p;
+  }
+
+  // Adds the diffuse tail of the direct path to buf (all mics, independent tails per mic).
+  void add_diffuse_tail(const Plan& plan, const Emission& e, const Source& s, std::vector<std::vector<double>>& buf) {
+    const Room& room = *sim_.acoustics.room;
+    const auto& spec = (*s.emits)[static_cast<std::size_t>(e.signal_index)];
+    const TailParams tp = diffuse_tail_params(centre_frequency_hz(spec));
+    if (!(tp.energy > 0.0) || room.tail_taps <= 0) return;
+    Rng rng = Rng::derive(sim_.seed, "tail/" + dev_.id + "/" + std::to_string(plan.emission));
+    const double g_1m = sim_.acoustics.level_at_1m * s.level * e.gain;
+    const dsp::SignalEvaluator& ev = *evaluators_[source_index(e.source_id)][static_cast<std::size_t>(e.signal_index)];
+    // the dry signal as it leaves the speaker, on this device's sample grid, from the direct arrival
+    const double t_dir = arrival(s, images_.front(), 0, e.t_start_true_s());
+    const double k_dir = dev_.clock.local_from_true(t_dir) * fs_ - static_cast<double>(plan.base);
+    const std::size_t len = buf.front().size();
+    const auto sig_len = static_cast<std::size_t>(std::ceil(ev.end_s() * fs_)) + 2;
+    std::vector<double> dry(sig_len);
+    const double frac = k_dir - std::floor(k_dir);
+    for (std::size_t i = 0; i < sig_len; ++i) dry[i] = ev.value((static_cast<double>(i) - frac) / fs_);
+    const auto k0 = static_cast<std::int64_t>(std::floor(k_dir));
+    std::vector<double> taps(static_cast<std::size_t>(room.tail_taps));
+    std::vector<std::int64_t> delays(taps.size());
+    for (std::size_t ch = 0; ch < channels_; ++ch) {
+      double e2 = 0.0;
+      for (std::size_t j = 0; j < taps.size(); ++j) {
+        const double d = rng.uniform(tp.start_s, tp.end_s);
+        delays[j] = static_cast<std::int64_t>(std::llround(d * fs_));
+        taps[j] = rng.normal() * std::exp(-(d - tp.start_s) / tp.tau_s);
+        e2 += taps[j] * taps[j];
+      }
+      const double scale = e2 > 0.0 ? g_1m * std::sqrt(tp.energy / e2) : 0.0;
+      auto& out = buf[ch];
+      for (std::size_t j = 0; j < taps.size(); ++j) {
+        const double a = scale * taps[j];
+        const std::int64_t at = k0 + delays[j];
+        for (std::size_t i = 0; i < sig_len; ++i) {
+          const std::int64_t k = at + static_cast<std::int64_t>(i);
+          if (k >= 0 && k < static_cast<std::int64_t>(len)) out[static_cast<std::size_t>(k)] += a * dry[i];
+        }
       }
     }
   }
@@ -457,6 +531,7 @@ class DeviceRenderer {
         if (v != 0.0) out[i] += g / std::max(r, rmin) * v * (kappa > 0.0 ? std::exp(-kappa * r) : 1.0);
       }
     }
+    if (sim_.acoustics.room && sim_.acoustics.room->diffuse_tail) add_diffuse_tail(plan, e, s, buf);
     if (sim_.acoustics.band_limits && s.response.enabled()) {
       dsp::SosFilter f(design(s.response, fs_));
       for (auto& b : buf) {
