@@ -155,7 +155,8 @@ TEST(SimBursts, BabbleAndMusicBurstsAreTheSameOnEveryChannel) {
     diff += std::abs(static_cast<double>(x[0][i]) - x[1][i]);
   }
   EXPECT_GT(e, 0.0);  // some bursts in 30 s at 20 per minute
-  EXPECT_EQ(diff, 0.0);
+  EXPECT_LT(diff / static_cast<double>(x[0].size()), 1e-9);  // only the (200 dB down) stationary noise differs
+  EXPECT_GT(std::sqrt(e / static_cast<double>(x[0].size())), 1e-4);
 }
 
 TEST(SimDiffuseTail, SabineEnergyAfterTheImageSources) {
