@@ -20,6 +20,8 @@
 #include <yaml-cpp/yaml.h>
 
 #include "locus/dsp/iir.hpp"
+#include "locus/sim/interference.hpp"
+#include "locus/sim/response.hpp"
 
 namespace locus::sim {
 
@@ -95,18 +97,7 @@ struct Source {
   BandLimit response;
 };
 
-std::vector<dsp::Biquad> design(const BandLimit& b, double fs) {
-  std::vector<dsp::Biquad> sos;
-  if (b.low_hz > 0.0) {
-    auto s = dsp::butter_highpass(b.order, b.low_hz, fs);
-    sos.insert(sos.end(), s.begin(), s.end());
-  }
-  if (b.high_hz > 0.0 && b.high_hz < 0.5 * fs) {
-    auto s = dsp::butter_lowpass(b.order, b.high_hz, fs);
-    sos.insert(sos.end(), s.begin(), s.end());
-  }
-  return sos;
-}
+std::vector<dsp::Biquad> design(const BandLimit& b, double fs) { return design_response(b, fs); }  // response.hpp
 
 // Pink noise: Paul Kellet's refined filter of white noise, scaled to unit RMS.
 class PinkFilter {
@@ -146,8 +137,21 @@ class PinkFilter {
 };
 
 struct Burst {
-  std::uint64_t k0, k1;  // frame range
+  std::uint64_t k0, k1;        // frame range
+  std::vector<double> wave;    // babble / music waveform (unit RMS, k1 − k0 samples); empty = white
 };
+
+// Centre frequency of an acoustic signal (air absorption): lfm mid-band, multitone mean, gold carrier.
+double centre_frequency_hz(const dsp::SignalSpec& s) {
+  if (s.type == "lfm") return 0.5 * (s.f0_hz + s.f1_hz);
+  if (s.type == "multitone" && !s.tones_hz.empty()) {
+    double m = 0.0;
+    for (double f : s.tones_hz) m += f;
+    return m / static_cast<double>(s.tones_hz.size());
+  }
+  if (s.type == "gold") return s.carrier_hz;
+  return 0.0;
+}
 
 // Everything needed to render one receiving device.
 class DeviceRenderer {
@@ -174,15 +178,20 @@ class DeviceRenderer {
     std::vector<dsp::SosFilter> mic_filters;
     const bool band = sim_.acoustics.band_limits && dev_.mic_response.enabled();
     for (std::size_t ch = 0; ch < channels_; ++ch) mic_filters.emplace_back(design(dev_.mic_response, fs_));
-    std::vector<Rng> noise_rng;
+    std::vector<Rng> noise_rng, self_rng;
     std::vector<PinkFilter> pink(channels_);
-    for (std::size_t ch = 0; ch < channels_; ++ch)
+    for (std::size_t ch = 0; ch < channels_; ++ch) {
       noise_rng.push_back(Rng::derive(sim_.seed, "noise/" + dev_.id + "/" + std::to_string(ch)));
+      self_rng.push_back(Rng::derive(sim_.seed, "selfnoise/" + dev_.id + "/" + std::to_string(ch)));
+    }
     const NoiseModel& nm = sim_.acoustics.noise;
     const double sigma = nm.enabled ? sim_.acoustics.level_at_1m / std::sqrt(2.0) / std::pow(10.0, nm.snr_db / 20.0) : 0.0;
     const double w_white = std::sqrt(1.0 - std::clamp(nm.pink_fraction, 0.0, 1.0));
     const double w_pink = std::sqrt(std::clamp(nm.pink_fraction, 0.0, 1.0));
     const double burst_gain = std::pow(10.0, nm.burst_db / 20.0);
+    const double self_sigma = nm.enabled && nm.self_noise_snr_db
+                                  ? sim_.acoustics.level_at_1m / std::sqrt(2.0) / std::pow(10.0, *nm.self_noise_snr_db / 20.0)
+                                  : 0.0;
 
     std::size_t next_contrib = 0;
     std::size_t next_burst = 0;
@@ -215,6 +224,13 @@ class DeviceRenderer {
           const Burst& br = bursts_[b];
           const std::uint64_t k0 = std::max(br.k0, start), k1 = std::min(br.k1, start + n);
           const double len = static_cast<double>(br.k1 - br.k0);
+          if (!br.wave.empty()) {  // babble / music: the same sound on every channel
+            for (std::size_t ch = 0; ch < channels_; ++ch)
+              for (std::uint64_t k = k0; k < k1; ++k)
+                acc[ch][static_cast<std::size_t>(k - start)] +=
+                    sigma * burst_gain * br.wave[static_cast<std::size_t>(k - br.k0)];
+            continue;
+          }
           for (std::size_t ch = 0; ch < channels_; ++ch) {
             Rng& rng = noise_rng[ch];
             for (std::uint64_t k = k0; k < k1; ++k) {
@@ -230,6 +246,7 @@ class DeviceRenderer {
         auto& a = acc[ch];
         for (std::size_t i = 0; i < n; ++i) {
           double v = band ? mic_filters[ch].process_double(a[i]) : a[i];
+          if (self_sigma > 0.0) v += self_sigma * self_rng[ch].normal();  // mic self-noise (electrical)
           v *= dev_.mic_gain;
           if (v > 1.0) {
             v = 1.0;
@@ -305,7 +322,16 @@ class DeviceRenderer {
   }
 
   void plan() {
-    const std::int64_t tail = (sim_.acoustics.band_limits ? static_cast<std::int64_t>(std::ceil(kFilterTail_s * fs_)) : 0);
+    std::int64_t tail = (sim_.acoustics.band_limits ? static_cast<std::int64_t>(std::ceil(kFilterTail_s * fs_)) : 0);
+    const auto& room = sim_.acoustics.room;
+    if (room && room->diffuse_tail) {
+      // the longest tail of any signal (lowest centre frequency: least air absorption)
+      double worst = 0.0;
+      for (const auto& src : sources_)
+        for (const auto& spec : *src.emits)
+          if (spec.acoustic()) worst = std::max(worst, diffuse_tail_params(centre_frequency_hz(spec)).end_s);
+      tail += static_cast<std::int64_t>(std::ceil(worst * fs_)) + 1;
+    }
     std::vector<PathWindow> w;
     for (std::size_t ei = 0; ei < sim_.emissions.size(); ++ei) {
       const Emission& e = sim_.emissions[ei];
@@ -326,6 +352,7 @@ class DeviceRenderer {
     const NoiseModel& nm = sim_.acoustics.noise;
     if (nm.enabled && nm.bursts_per_minute > 0.0) {
       Rng rng = Rng::derive(sim_.seed, "bursts/" + dev_.id);
+      Rng wave_rng = Rng::derive(sim_.seed, "burstwave/" + dev_.id);
       const double mean_gap = 60.0 / nm.bursts_per_minute;
       double t = rng.exponential(mean_gap);
       const double total = static_cast<double>(frames_) / fs_;
@@ -333,8 +360,82 @@ class DeviceRenderer {
         const double d = rng.uniform(nm.burst_min_s, nm.burst_max_s);
         const auto k0 = static_cast<std::uint64_t>(t * fs_);
         const auto k1 = std::min<std::uint64_t>(frames_, static_cast<std::uint64_t>((t + d) * fs_) + 1);
-        if (k1 > k0 + 1) bursts_.push_back(Burst{k0, k1});
+        if (k1 > k0 + 1) {
+          Burst b{k0, k1, {}};
+          using K = NoiseModel::BurstKind;
+          if (nm.burst_kind != K::White) {
+            const bool babble = nm.burst_kind == K::Babble || (nm.burst_kind == K::Mixed && wave_rng.bernoulli(0.5));
+            b.wave = synth_interference(babble ? InterferenceKind::Babble : InterferenceKind::Music,
+                                        static_cast<std::size_t>(k1 - k0), fs_, wave_rng);
+          }
+          bursts_.push_back(std::move(b));
+        }
         t += d + rng.exponential(mean_gap);
+      }
+    }
+  }
+
+  struct TailParams {
+    double start_s = 0.0, tau_s = 0.0, end_s = 0.0, energy = 0.0;  // energy relative to the direct sound at 1 m
+  };
+  // Sabine diffuse tail of the room at frequency fc (Room::diffuse_tail).
+  TailParams diffuse_tail_params(double fc) const {
+    TailParams p;
+    const Room& room = *sim_.acoustics.room;
+    const Eigen::Vector3d& L = room.size_m;
+    const double V = L.prod(), S = 2.0 * (L.x() * L.y() + L.y() * L.z() + L.x() * L.z());
+    double mean_b2 = 0.0;
+    for (double b : room.reflection) mean_b2 += b * b / 6.0;
+    const double alpha = std::clamp(1.0 - mean_b2, 1e-3, 1.0);
+    const double m = sim_.acoustics.air_absorption && fc > 0.0
+                         ? air_absorption_db_per_m(fc, sim_.acoustics.temperature_c, sim_.acoustics.humidity_pct) / 4.343
+                         : 0.0;  // intensity attenuation per metre
+    const double A = S * alpha + 4.0 * m * V;
+    const double rt60 = 0.161 * V / A;
+    p.tau_s = rt60 / 6.91;  // amplitude e-folding time
+    p.start_s = std::max(1, room.max_order) * L.minCoeff() / c_;
+    p.end_s = p.start_s + 5.0 * p.tau_s;
+    p.energy = 16.0 * M_PI / A * std::exp(-2.0 * p.start_s / p.tau_s);
+    return p;
+  }
+
+  // Adds the diffuse tail of the direct path to buf (all mics, independent tails per mic).
+  void add_diffuse_tail(const Plan& plan, const Emission& e, const Source& s, std::vector<std::vector<double>>& buf) {
+    const Room& room = *sim_.acoustics.room;
+    const auto& spec = (*s.emits)[static_cast<std::size_t>(e.signal_index)];
+    const TailParams tp = diffuse_tail_params(centre_frequency_hz(spec));
+    if (!(tp.energy > 0.0) || room.tail_taps <= 0) return;
+    Rng rng = Rng::derive(sim_.seed, "tail/" + dev_.id + "/" + std::to_string(plan.emission));
+    const double g_1m = sim_.acoustics.level_at_1m * s.level * e.gain;
+    const dsp::SignalEvaluator& ev = *evaluators_[source_index(e.source_id)][static_cast<std::size_t>(e.signal_index)];
+    // the dry signal as it leaves the speaker, on this device's sample grid, from the direct arrival
+    const double t_dir = arrival(s, images_.front(), 0, e.t_start_true_s());
+    const double k_dir = dev_.clock.local_from_true(t_dir) * fs_ - static_cast<double>(plan.base);
+    const std::size_t len = buf.front().size();
+    const auto sig_len = static_cast<std::size_t>(std::ceil(ev.end_s() * fs_)) + 2;
+    std::vector<double> dry(sig_len);
+    const double frac = k_dir - std::floor(k_dir);
+    for (std::size_t i = 0; i < sig_len; ++i) dry[i] = ev.value((static_cast<double>(i) - frac) / fs_);
+    const auto k0 = static_cast<std::int64_t>(std::floor(k_dir));
+    std::vector<double> taps(static_cast<std::size_t>(room.tail_taps));
+    std::vector<std::int64_t> delays(taps.size());
+    for (std::size_t ch = 0; ch < channels_; ++ch) {
+      double e2 = 0.0;
+      for (std::size_t j = 0; j < taps.size(); ++j) {
+        const double d = rng.uniform(tp.start_s, tp.end_s);
+        delays[j] = static_cast<std::int64_t>(std::llround(d * fs_));
+        taps[j] = rng.normal() * std::exp(-(d - tp.start_s) / tp.tau_s);
+        e2 += taps[j] * taps[j];
+      }
+      const double scale = e2 > 0.0 ? g_1m * std::sqrt(tp.energy / e2) : 0.0;
+      auto& out = buf[ch];
+      for (std::size_t j = 0; j < taps.size(); ++j) {
+        const double a = scale * taps[j];
+        const std::int64_t at = k0 + delays[j];
+        for (std::size_t i = 0; i < sig_len; ++i) {
+          const std::int64_t k = at + static_cast<std::int64_t>(i);
+          if (k >= 0 && k < static_cast<std::int64_t>(len)) out[static_cast<std::size_t>(k)] += a * dry[i];
+        }
       }
     }
   }
@@ -360,6 +461,12 @@ class DeviceRenderer {
     path_windows(e, s, windows);
     const double te0 = e.t_start_true_s();
     const double base_gain = sim_.acoustics.level_at_1m * s.level * e.gain;
+    // air absorption at the signal's centre frequency: gain exp(−kappa·r)
+    const double fc = centre_frequency_hz((*s.emits)[static_cast<std::size_t>(e.signal_index)]);
+    const double kappa = sim_.acoustics.air_absorption && fc > 0.0
+                             ? air_absorption_db_per_m(fc, sim_.acoustics.temperature_c, sim_.acoustics.humidity_pct) *
+                                   std::log(10.0) / 20.0
+                             : 0.0;
     const double obstruct = obstruction_gain(e);
     const double rmin = sim_.acoustics.min_distance_m;
     const bool rx_static = dev_.trajectory->is_static();
@@ -422,9 +529,10 @@ class DeviceRenderer {
         }
         const double te = t - r / c_;
         const double v = ev.value(te - te0);
-        if (v != 0.0) out[i] += g / std::max(r, rmin) * v;
+        if (v != 0.0) out[i] += g / std::max(r, rmin) * v * (kappa > 0.0 ? std::exp(-kappa * r) : 1.0);
       }
     }
+    if (sim_.acoustics.room && sim_.acoustics.room->diffuse_tail) add_diffuse_tail(plan, e, s, buf);
     if (sim_.acoustics.band_limits && s.response.enabled()) {
       dsp::SosFilter f(design(s.response, fs_));
       for (auto& b : buf) {
@@ -506,6 +614,22 @@ ImuReading KinematicImu::sample(const Simulation& sim, const DeviceModel& device
     r.mag_ut = m;
   }
   return r;
+}
+
+// ------------------------------------------------------------------------------------------ air absorption
+
+double air_absorption_db_per_m(double f, double temperature_c, double humidity_pct) {
+  // ISO 9613-1:1993, eqs. (3)-(5) and annex B (saturation vapour pressure), p_a = p_r = 101.325 kPa.
+  const double T = temperature_c + 273.15, T0 = 293.15, T01 = 273.16;
+  const double psat_rel = std::pow(10.0, -6.8346 * std::pow(T01 / T, 1.261) + 4.6151);
+  const double h = humidity_pct * psat_rel;  // molar concentration of water vapour, %
+  const double frO = 24.0 + 4.04e4 * h * (0.02 + h) / (0.391 + h);
+  const double frN = std::pow(T / T0, -0.5) * (9.0 + 280.0 * h * std::exp(-4.170 * (std::pow(T / T0, -1.0 / 3.0) - 1.0)));
+  const double f2 = f * f;
+  return 8.686 * f2 *
+         (1.84e-11 * std::sqrt(T / T0) +
+          std::pow(T / T0, -2.5) * (0.01275 * std::exp(-2239.1 / T) / (frO + f2 / frO) +
+                                    0.1068 * std::exp(-3352.0 / T) / (frN + f2 / frN)));
 }
 
 // ------------------------------------------------------------------------------------------ Simulation
@@ -718,7 +842,7 @@ WriteReport SceneSimulator::write(const std::string& out_dir) const {
         const ImuReading r = d.imu->sample(sim_, d, d.clock.true_from_local(local), rng);
         ImuSample s;
         s.device = DeviceId(d.id);
-        s.t_s = local;
+        s.t_s = std::max(0.0, local + r.stamp_offset_s);  // row-stamp jitter (ImuReading::stamp_offset_s)
         for (int i = 0; i < 3; ++i) {
           s.accel_mps2[static_cast<std::size_t>(i)] = static_cast<float>(r.accel_mps2[i]);
           s.gyro_radps[static_cast<std::size_t>(i)] = static_cast<float>(r.gyro_radps[i]);

@@ -10,6 +10,8 @@
 #include "locus/scene/scene.hpp"
 #include "locus/scene/streams.hpp"
 #include "locus/sim/families.hpp"
+#include "locus/sim/motion/gesture.hpp"
+#include "locus/sim/motion/imu.hpp"
 #include "sim_test_util.hpp"
 
 namespace locus::sim {
@@ -121,7 +123,8 @@ TEST(SimFamilies, SameSeedSameBytesOtherSeedOtherBytes) {
 }
 
 TEST(SimFamilies, AmilLayoutAndBeepsFollowThePaper) {
-  const Simulation s1 = make("amil", 2, Difficulty::Normal, std::nullopt);
+  // the paper's triangle (the easy default; normal draws a ~30 cm equilateral one, see below)
+  const Simulation s1 = make("amil", 2, Difficulty::Normal, std::nullopt, {"shape=paper", "corner_jitter_m=0"});
   const Simulation s3 = make("amil", 2, Difficulty::Normal, std::nullopt, {"gestures=3"});
   EXPECT_EQ(s1.devices.size(), 13u);
   EXPECT_EQ(s1.emissions.size(), 5u);   // 5 beeps per triangle
@@ -152,7 +155,59 @@ TEST(SimFamilies, AmilLayoutAndBeepsFollowThePaper) {
   EXPECT_LT((corner(2) - Eigen::Vector2d(0, 0.305)).norm(), 2e-3);
   EXPECT_LT((corner(3) - Eigen::Vector2d(0.305, 0)).norm(), 2e-3);
   EXPECT_THROW(make("amil", 2, Difficulty::Normal, std::nullopt, {"gestures=2"}), std::invalid_argument);
+  EXPECT_THROW(make("amil", 2, Difficulty::Normal, std::nullopt, {"shape=circle"}), std::invalid_argument);
   EXPECT_THROW(make("amil", 2, Difficulty::Normal, std::nullopt, {"gesturez=3"}), std::invalid_argument);
+}
+
+// Normal is as hard as the reference generator's AMIL scenes (docs/simulator.md, "Calibration"): a
+// ~30 cm equilateral triangle with corners missed by ~1 cm, pauses 0.3-0.5 s, every beep still in a
+// pause, per-device transducer responses, babble/music bursts, self-noise, air absorption, the
+// consumer IMU (16-bit ADC, random walk, cross-axis, stamp jitter).
+TEST(SimFamilies, AmilNormalIsAsHardAsTheReferenceScenes) {
+  for (std::uint64_t seed : {1u, 2u, 3u}) {
+    const Simulation s = make("amil", seed, Difficulty::Normal, std::nullopt);
+    const DeviceModel& p = s.devices[0];
+    const auto* g = dynamic_cast<const motion::GestureTrajectory*>(p.trajectory.get());
+    ASSERT_NE(g, nullptr);
+    const auto& pauses = g->pauses();
+    ASSERT_EQ(pauses.size(), 5u);
+    for (std::size_t k = 1; k + 1 < pauses.size(); ++k) {
+      EXPECT_GE(pauses[k].end_s - pauses[k].start_s, 0.3 - 1e-12);
+      EXPECT_LE(pauses[k].end_s - pauses[k].start_s, 0.5 + 1e-12);
+    }
+    // the triangle: base (corner 1 → corner 3) 0.27-0.33 m ± corner misses, apex about √3/2 of it up
+    const Eigen::Vector3d base = pauses[3].position_m - pauses[1].position_m;
+    EXPECT_GT(base.norm(), 0.27 - 0.07);
+    EXPECT_LT(base.norm(), 0.33 + 0.07);
+    EXPECT_NEAR((pauses[2].position_m - pauses[0].position_m).y(), base.norm() * std::sqrt(3.0) / 2.0, 0.08);
+    for (const auto& e : s.emissions) {  // every beep (50 ms) inside a pause
+      EXPECT_LT(p.trajectory->velocity(e.t_start_true_s()).norm(), 0.01);
+      EXPECT_LT(p.trajectory->velocity(e.t_start_true_s() + 0.05).norm(), 0.01);
+    }
+    // per-device transducers: ripple + roll-off shelf, different between devices
+    EXPECT_EQ(p.speaker_response.eq.size(), 7u);
+    EXPECT_EQ(s.devices[1].mic_response.eq.size(), 7u);
+    EXPECT_NE(s.devices[1].mic_response.eq[0].freq_hz, s.devices[2].mic_response.eq[0].freq_hz);
+    EXPECT_EQ(s.acoustics.noise.burst_kind, NoiseModel::BurstKind::Mixed);
+    EXPECT_TRUE(s.acoustics.noise.self_noise_snr_db.has_value());
+    EXPECT_TRUE(s.acoustics.air_absorption);
+    const auto* imu = dynamic_cast<const motion::PhoneImu*>(p.imu.get());
+    ASSERT_NE(imu, nullptr);
+    EXPECT_EQ(imu->config().adc_bits, 16);
+    EXPECT_GE(imu->config().accel_bias_std_mps2, 0.04);
+    EXPECT_GE(imu->config().gyro_bias_std_radps, 0.004);
+    EXPECT_GE(imu->config().gyro_noise_density, 1.5e-4);
+    EXPECT_GE(imu->config().stamp_jitter_std_s, 1.2e-4);
+    EXPECT_GT(imu->config().accel_bias_rw, 0.0);
+    EXPECT_GE(imu->config().accel_cross_axis_std_rad, 1.7e-3);
+  }
+  // easy keeps the paper's triangle and the longer pauses
+  const Simulation e = make("amil", 1, Difficulty::Easy, std::nullopt);
+  const auto* ge = dynamic_cast<const motion::GestureTrajectory*>(e.devices[0].trajectory.get());
+  ASSERT_NE(ge, nullptr);
+  EXPECT_NEAR((ge->pauses()[1].position_m - ge->pauses()[0].position_m).x(), -0.305, 0.03);
+  for (std::size_t k = 1; k + 1 < ge->pauses().size(); ++k)
+    EXPECT_GE(ge->pauses()[k].end_s - ge->pauses()[k].start_s, 0.4 - 1e-12);
 }
 
 // The emission schedule (truth) shows up in the player's self-recording and a listener's audio at the

@@ -50,12 +50,7 @@ PhoneImuConfig phone_imu_config(double rate_hz, double noise_scale, bool magneto
   PhoneImuConfig c;
   c.rate_hz = rate_hz;
   c.magnetometer = magnetometer;
-  c.accel_noise_density *= noise_scale;
-  c.gyro_noise_density *= noise_scale;
-  c.mag_noise_ut *= noise_scale;
-  c.accel_bias_std_mps2 *= noise_scale;
-  c.gyro_bias_std_radps *= noise_scale;
-  c.mag_bias_std_ut *= noise_scale;
+  c.scale_errors(noise_scale);  // every error term, the ADC stays
   return c;
 }
 

@@ -32,6 +32,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -49,13 +50,29 @@ struct DeviceModel;
 
 // ------------------------------------------------------------------------------------------ responses
 
-/// A Butterworth band limit (speaker or microphone frequency response). 0 disables an edge:
-/// {0, 0} = flat, {f, 0} = high-pass, {0, f} = low-pass, {f1, f2} = band-pass.
+/// One equaliser section of a transducer response (RBJ audio-EQ-cookbook biquads): a peak/dip of
+/// gain_db at freq_hz with quality q, or a high shelf of gain_db above freq_hz (slope 1).
+struct EqSection {
+  enum class Kind { Peaking, HighShelf };
+  Kind kind = Kind::Peaking;
+  double freq_hz = 1000.0;
+  double gain_db = 0.0;
+  double q = 1.0;  ///< peaking only
+};
+
+/// A speaker or microphone magnitude response: Butterworth band edges (0 disables an edge: {0, 0} =
+/// flat, {f, 0} = high-pass, {0, f} = low-pass, {f1, f2} = band-pass) followed by equaliser
+/// sections (the per-device ripple and high-frequency roll-off of a real transducer; see
+/// response.hpp for random per-device responses).
 struct BandLimit {
+  BandLimit() = default;
+  BandLimit(double low, double high, int order_ = 2, std::vector<EqSection> eq_ = {})
+      : low_hz(low), high_hz(high), order(order_), eq(std::move(eq_)) {}
   double low_hz = 0.0;
   double high_hz = 0.0;
   int order = 2;  ///< Butterworth order of each edge
-  bool enabled() const noexcept { return low_hz > 0.0 || high_hz > 0.0; }
+  std::vector<EqSection> eq;
+  bool enabled() const noexcept { return low_hz > 0.0 || high_hz > 0.0 || !eq.empty(); }
 };
 
 // ------------------------------------------------------------------------------------------ sensors
@@ -65,6 +82,9 @@ struct ImuReading {
   Eigen::Vector3d accel_mps2 = Eigen::Vector3d::Zero();
   Eigen::Vector3d gyro_radps = Eigen::Vector3d::Zero();
   std::optional<Eigen::Vector3d> mag_ut;
+  /// Row-stamp error: the row is written at the nominal local time + this (timestamp jitter; the
+  /// reading itself is of the nominal instant). Must stay within ±0.5 sample period (rows in order).
+  double stamp_offset_s = 0.0;
 };
 
 /// Produces a device's IMU readings. The engine calls sample() at the device's regular LOCAL sample
@@ -162,6 +182,16 @@ struct Room {
   Eigen::Vector3d size_m{5.0, 5.0, 3.0};
   std::array<double, 6> reflection{0.7, 0.7, 0.7, 0.7, 0.7, 0.7};
   int max_order = 2;  ///< 0 = direct path only
+  /// Diffuse reverberant tail beyond the image sources (off by default): per (emission, receiver,
+  /// mic) a sparse random impulse response of `tail_taps` taps, uniformly spread over
+  /// [t_s, t_s + 5·τ] after the direct path (t_s = max_order·L_min/c: where the image sources
+  /// thin out; τ = RT60/6.91 from Sabine with ᾱ = 1 − mean β² and the air absorption at the
+  /// signal's centre frequency), amplitudes N(0,1)·e^(−t/τ), scaled so that the tail's energy is
+  /// the late part e^(−2 t_s/τ) of the Sabine diffuse-field energy 16π/A relative to the direct
+  /// sound at 1 m (A = S·ᾱ + 4·m·V, the room's absorption area). Integer-sample tap delays: a
+  /// diffuse field has no coherent arrival to time.
+  bool diffuse_tail = false;
+  int tail_taps = 400;
   void set_reflection(double beta) { reflection.fill(beta); }
 };
 
@@ -180,9 +210,17 @@ struct Obstruction {
 struct NoiseModel {
   double snr_db = 40.0;
   double pink_fraction = 0.0;          ///< 0 = white, 1 = pink (−3 dB/octave), between = mix of powers
-  double bursts_per_minute = 0.0;      ///< Poisson bursts of louder white noise (clatter, speech)
-  double burst_db = 12.0;              ///< burst level above the stationary noise
+  double bursts_per_minute = 0.0;      ///< Poisson bursts of louder noise (clatter, speech, music)
+  double burst_db = 12.0;              ///< burst level (RMS) above the stationary noise
   double burst_min_s = 0.05, burst_max_s = 0.4;
+  /// What a burst is: White = independent white noise per channel (sine envelope); Babble / Music =
+  /// interference.hpp waveforms (talkers with fricatives; notes with hi-hats), energy up to 20 kHz,
+  /// the same waveform on every channel of the device; Mixed = babble or music, drawn per burst.
+  enum class BurstKind { White, Babble, Music, Mixed };
+  BurstKind burst_kind = BurstKind::White;
+  /// Microphone self-noise: white, added after the microphone response (electrical), its level as
+  /// the SNR of a unit-level source at 1 m like snr_db; nullopt = none.
+  std::optional<double> self_noise_snr_db;
   bool enabled = true;
 };
 
@@ -194,7 +232,16 @@ struct AcousticModel {
   double level_at_1m = 0.1;                        ///< amplitude (full scale = 1) of a unit source at 1 m
   double min_distance_m = 0.01;                    ///< spreading is clamped below this distance
   bool band_limits = true;                         ///< apply speaker/mic BandLimits (tests turn off)
+  /// Air absorption (ISO 9613-1 at temperature_c / humidity_pct, 101.325 kPa) of every path, as a
+  /// gain 10^(−α(f_c)·r/20) at the emitted signal's centre frequency f_c (lfm: (f0+f1)/2, multitone:
+  /// mean tone, gold: carrier): 0.47 dB/m at 19 kHz, 20 °C, 50 % RH. Off by default.
+  bool air_absorption = false;
+  double temperature_c = 20.0;
+  double humidity_pct = 50.0;
 };
+
+/// ISO 9613-1 pure-tone atmospheric absorption in dB per metre at 101.325 kPa.
+double air_absorption_db_per_m(double freq_hz, double temperature_c, double humidity_pct);
 
 // ------------------------------------------------------------------------------------------ schedule
 

@@ -7,6 +7,17 @@
 // distance, T = max(min_stroke_s, distance / mean_speed_mps). The phone's yaw changes a little from
 // waypoint to waypoint (a hand rotates the phone as it moves; min-jerk too), and physiological
 // tremor (8-12 Hz, sub-millimetre) rides on top everywhere. Pauses are where the player beeps.
+//
+// A hand is not a robot (what makes the gesture as hard as the world, docs/simulator-motion.md):
+//   * wiggle: every stroke bows off the straight line and speeds up / lags along it by a smooth bump
+//     o_k·64u³(1−u)³ (zero position, velocity and acceleration change at both ends), o_k drawn per
+//     stroke, N(0, wiggle_m) across and along the stroke;
+//   * yaw during strokes: the phone turns by N(0, yaw_stroke_rad) at mid-stroke (same bump) on top
+//     of the waypoint-to-waypoint heading change, and comes back;
+//   * the corners actually drawn miss the nominal waypoints by N(0, waypoint_jitter_m) per axis
+//     (all but the first, which is the origin of the gesture);
+//   * a phone on a table is not level (camera bump, table): constant tilt_pitch/roll, so gravity
+//     leaks into the accelerometer's x and y (9.81·sin 0.6° = 0.1 m/s²).
 #pragma once
 
 #include <cstdint>
@@ -38,6 +49,11 @@ struct GestureParams {
   double tremor_rad = 5e-4;         ///< std of tremor rotation (each axis)
   double tremor_hz = 9.0;           ///< centre of the tremor band (components spread ±30 %)
   bool lifted = false;              ///< false: on a table (z fixed, flat); true: in the air (z tremor, tilt)
+  double wiggle_m = 0.0;            ///< std of a stroke's mid-point deviation, across and along it
+  double yaw_stroke_rad = 0.0;      ///< std of the yaw excursion at mid-stroke
+  double waypoint_jitter_m = 0.0;   ///< std (per axis) of a drawn corner's miss of its nominal waypoint
+  double tilt_pitch_rad = 0.0;      ///< constant pitch (about body x) of the phone lying on the table
+  double tilt_roll_rad = 0.0;       ///< constant roll (about body y): camera bump, uneven table
 };
 
 /// A pause of the gesture: the phone rests at `position_m` from start_s to end_s (true time).
@@ -51,7 +67,8 @@ struct PauseInterval {
 class GestureTrajectory final : public Trajectory {
  public:
   /// Builds the gesture starting at true time t0_s (the lead-in starts there); `seed` draws pause
-  /// lengths, heading wobble and tremor. Throws std::invalid_argument for fewer than 2 waypoints or
+  /// lengths, heading wobble, tremor, wiggle, mid-stroke yaw and corner misses (the last three from
+  /// a separate stream, so a gesture without them is the same as before they existed). Throws std::invalid_argument for fewer than 2 waypoints or
   /// non-positive speeds/durations.
   GestureTrajectory(const GestureParams& params, double t0_s, std::uint64_t seed);
 
@@ -78,6 +95,8 @@ class GestureTrajectory final : public Trajectory {
   std::vector<PauseInterval> pauses_;
   std::vector<Vec3> points_world_;
   std::vector<double> yaw_at_;          // device heading at each waypoint
+  std::vector<Vec3> wiggle_;            // stroke k: mid-point offset (bump amplitude), world
+  std::vector<double> yaw_bump_;        // stroke k: mid-stroke yaw excursion
   std::vector<Tremor> tremor_[6];       // x, y, z displacement; rotation about x, y, z
 };
 

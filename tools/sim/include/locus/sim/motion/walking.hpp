@@ -19,7 +19,8 @@ std::vector<Eigen::Vector2d> offset_polyline(const std::vector<Eigen::Vector2d>&
 /// walker, sorted by t_true (true time, s). See docs/simulator.md.
 std::string truth_steps_csv(const std::vector<std::pair<std::string, const PedestrianTrajectory*>>& walkers);
 
-/// A phone IMU whose noise and bias sigmas are multiplied by `noise_scale` (difficulty).
+/// A phone IMU (PhoneImuConfig defaults) whose error sigmas are multiplied by `noise_scale`
+/// (difficulty; PhoneImuConfig::scale_errors).
 PhoneImuConfig phone_imu_config(double rate_hz, double noise_scale, bool magnetometer);
 
 }  // namespace locus::sim::motion
