@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "locus/dsp/correlator.hpp"
+#include "locus/dsp/emission_canceller.hpp"
 #include "locus/dsp/peak.hpp"
 #include "locus/dsp/prescreen.hpp"
 #include "locus/dsp/signals.hpp"
@@ -46,6 +47,31 @@ std::vector<dsp::SignalSpec> scene_lfms(const char* scene_emits_json) {
     if (!seen) out.push_back(s);
   }
   return out;
+}
+
+/// Index in `specs` of the lfm the device itself emits (DeviceGeometry::emits_json) when no other
+/// source of the scene (scene_emits_json) emits the same signal; -1 when there is none. A signal that
+/// another source also emits is not cancelled: its arrivals from the other source would go with it.
+int own_template(const std::vector<dsp::SignalSpec>& specs, const DeviceGeometry& g, std::string_view device) {
+  auto same = [](const dsp::SignalSpec& a, const nlohmann::json& sig) {
+    return sig.is_object() && sig.value("type", std::string()) == "lfm" && sig.value("f0", 0.0) == a.f0_hz &&
+           sig.value("f1", 0.0) == a.f1_hz && sig.value("duration", 0.0) == a.duration_s &&
+           sig.value("fade", 0.0) == a.fade_s;
+  };
+  const nlohmann::json own = nlohmann::json::parse(g.emits_json ? g.emits_json : "[]", nullptr, false);
+  const nlohmann::json all = nlohmann::json::parse(g.scene_emits_json ? g.scene_emits_json : "[]", nullptr, false);
+  if (!own.is_array()) return -1;
+  for (std::size_t t = 0; t < specs.size(); ++t) {
+    const bool mine = std::any_of(own.begin(), own.end(), [&](const nlohmann::json& sig) { return same(specs[t], sig); });
+    if (!mine) continue;
+    bool shared = false;
+    if (all.is_array())
+      for (const auto& e : all)
+        if (e.is_object() && e.value("id", std::string()) != device && e.contains("signal") && same(specs[t], e["signal"]))
+          shared = true;
+    if (!shared) return static_cast<int>(t);
+  }
+  return -1;
 }
 
 enum class Refine : std::uint8_t { Phase, Gaussian, Parabolic };
@@ -110,8 +136,28 @@ class ChirpDetector final : public Detector {
     const auto fft_size = params.get_int("fft_size");
     if (fft_size != 0 && (fft_size < 0 || (fft_size & (fft_size - 1)) != 0))
       throw std::runtime_error("chirp: fft_size must be 0 (automatic) or a power of two, got " + std::to_string(fft_size));
+    // Own-emission cancellation: the device's own template is searched in the raw audio (correlator
+    // channel c), every other template in the audio with the own emission subtracted (channel
+    // channels_ + c, fed by the canceller).
+    own_ = -1;
+    if (params.get_bool("cancel_own") && ctx.geometry != nullptr)
+      own_ = own_template(specs, *ctx.geometry, info.device);
+    if (own_ >= 0 && templates_ < 2) own_ = -1;  // nothing else to search for
+    if (own_ >= 0) {
+      dsp::EmissionCanceller::Options co;
+      co.channels = channels_;
+      co.taps_before = kCancelTapsBefore;
+      co.taps_after = static_cast<std::size_t>(std::llround(params.get_float("cancel_fir_s") * rate_));
+      try {
+        canceller_.configure(templates[static_cast<std::size_t>(own_)], ctx.fft, co);
+      } catch (const std::invalid_argument& e) {
+        throw std::runtime_error(std::string("chirp: own-emission canceller: ") + e.what());
+      }
+      ctx.log.info("chirp: template " + std::to_string(own_) +
+                   " is this device's own emission: searched in the raw audio, the others after subtracting it");
+    }
     dsp::Correlator::Options opt;
-    opt.channels = channels_;
+    opt.channels = own_ >= 0 ? 2 * channels_ : channels_;
     opt.fft_size = static_cast<std::size_t>(fft_size);
     opt.analytic = true;
     opt.baseband = true;
@@ -184,12 +230,15 @@ class ChirpDetector final : public Detector {
     const std::uint32_t nch = std::min(block.channels, channels_);
     for (std::uint32_t c = 0; c < nch; ++c) {
       const float* x = block.channel_data[c];
+      feed(c, c, x, block.frames, out);
+      if (own_ < 0) continue;
       std::size_t pos = 0;
       while (pos < block.frames) {
-        pos += corr_.push(c, x + pos, block.frames - pos);
-        if (corr_.full(c)) {
-          window(c, corr_.hop(), out);
-          corr_.advance(c);
+        pos += canceller_.push(c, x + pos, block.frames - pos);
+        if (canceller_.full(c)) {
+          const std::size_t n = canceller_.process(c);
+          feed(c, channels_ + c, canceller_.output(c), n, out);
+          canceller_.advance(c);
         }
       }
     }
@@ -231,9 +280,31 @@ class ChirpDetector final : public Detector {
     return s;
   }
 
+  /// Correlator channel of template t for audio channel c.
+  std::size_t cchan(std::uint32_t c, std::size_t t) const noexcept {
+    return own_ >= 0 && static_cast<int>(t) != own_ ? channels_ + c : c;
+  }
+
+  /// Pushes n samples into correlator channel cc (audio channel c), correlating every full window.
+  void feed(std::uint32_t c, std::size_t cc, const float* x, std::size_t n, EventSink& out) noexcept {
+    std::size_t pos = 0;
+    while (pos < n) {
+      pos += corr_.push(cc, x + pos, n - pos);
+      if (corr_.full(cc)) {
+        corr_.transform(cc);
+        window_transformed(c, cc, corr_.hop(), out);
+        corr_.advance(cc);
+      }
+    }
+  }
+
   void restart(std::uint64_t first_frame) noexcept {
     for (std::uint32_t c = 0; c < channels_; ++c) {
       corr_.reset(c, 0);
+      if (own_ >= 0) {
+        corr_.reset(channels_ + c, 0);
+        canceller_.reset(c, 0);
+      }
       origin_[c] = first_frame;
       for (std::size_t t = 0; t < templates_; ++t) {
         Track& tr = track(c, t);
@@ -248,22 +319,27 @@ class ChirpDetector final : public Detector {
   /// Correlates what is left of channel c's contiguous audio and closes its open events.
   void drain(std::uint32_t c, EventSink& out) noexcept {
     const std::size_t valid = corr_.flush(c);
-    if (valid > 0) window_transformed(c, valid, out);
+    if (valid > 0) window_transformed(c, c, valid, out);
+    if (own_ >= 0) {
+      const std::size_t n = canceller_.flush(c);
+      feed(c, channels_ + c, canceller_.output(c), n, out);
+      canceller_.reset(c, 0);
+      const std::size_t v = corr_.flush(channels_ + c);
+      if (v > 0) window_transformed(c, channels_ + c, v, out);
+    }
     for (std::size_t t = 0; t < templates_; ++t) {
       Track& tr = track(c, t);
       if (tr.open) finalize(c, t, out);
     }
   }
 
-  void window(std::uint32_t c, std::size_t count, EventSink& out) noexcept {
-    corr_.transform(c);
-    window_transformed(c, count, out);
-  }
-
-  void window_transformed(std::uint32_t c, std::size_t count, EventSink& out) noexcept {
+  /// Correlates the transformed window of correlator channel cc (audio channel c) with the templates
+  /// searched there and scans lags [window_start, window_start + count).
+  void window_transformed(std::uint32_t c, std::size_t cc, std::size_t count, EventSink& out) noexcept {
     ++windows_;
-    const std::uint64_t base = corr_.window_start(c);
+    const std::uint64_t base = corr_.window_start(cc);
     for (std::size_t t = 0; t < templates_; ++t) {
+      if (cchan(c, t) != cc) continue;
       dsp::BandPrescreen& screen = screens_[c * templates_ + t];
       if (prescreen_ && !screen.pass(corr_.spectrum())) {
         ++windows_skipped_;
@@ -279,7 +355,7 @@ class ChirpDetector final : public Detector {
         continue;
       }
       corr_.correlate(t);
-      const bool crossed = scan(c, t, base, count, out);
+      const bool crossed = scan(c, cc, t, base, count, out);
       if (prescreen_ && !crossed) screen.note_quiet(false);
     }
   }
@@ -337,7 +413,8 @@ class ChirpDetector final : public Detector {
   }
 
   /// Scans lags [base, base + count) of template t's correlation; true if any crossed the threshold.
-  bool scan(std::uint32_t c, std::size_t t, std::uint64_t base, std::size_t count, EventSink& out) noexcept {
+  bool scan(std::uint32_t c, std::size_t cc, std::size_t t, std::uint64_t base, std::size_t count,
+            EventSink& out) noexcept {
     Track& tr = track(c, t);
     const float* re = corr_.real(t);
     const float* im = corr_.imag(t);
@@ -377,7 +454,7 @@ class ChirpDetector final : public Detector {
     // Energy of the input under each lag (running sum over the template length) for the correlation
     // coefficient rho^2 = |z|^2 / (sum h^2 * sum x^2): ~1 for a matching chirp, ~2/L for noise, and
     // small for the range sidelobes of a loud chirp and its cross-terms with other templates.
-    const float* xs = corr_.samples(c);
+    const float* xs = corr_.samples(cc);
     const std::size_t len = corr_.template_length(t);
     const double eh = corr_.template_energy(t);
     // Computed lazily (only lags above the threshold need it): slid forward from the last lag it was
@@ -522,6 +599,7 @@ class ChirpDetector final : public Detector {
   // Extra margin (-3 dB) of the baseband screen for noise and interference between decimated lags.
   static constexpr double kBasebandMargin = 0.5;
   static constexpr double kMinCycleMargin = 0.3;  // multipath fit: agreement needed to change cycle
+  static constexpr std::size_t kCancelTapsBefore = 4;  // canceller FIR taps before the integer start
 
   Track& track(std::uint32_t c, std::size_t t) noexcept { return tracks_[c * templates_ + t]; }
 
@@ -541,6 +619,8 @@ class ChirpDetector final : public Detector {
   bool prescreen_ = true;
   Refine refine_ = Refine::Phase;
   dsp::Correlator corr_;
+  int own_ = -1;                      // template the device emits itself (cancelled for the others), -1 = none
+  dsp::EmissionCanceller canceller_;  // removes it from the audio the other templates are searched in
   std::vector<std::uint64_t> guard_;
   std::vector<std::uint64_t> span_;
   std::size_t ring_size_ = 0, ring_mask_ = 0;
@@ -598,6 +678,14 @@ const ParamSchema& chirp_schema() {
     s.push_back(int_param("fft_size", std::int64_t{0}, 0, 1 << 22, "",
                           "Overlap-save FFT size (a power of two larger than the longest template); 0 = 4x the "
                           "longest template."));
+    s.push_back(bool_param("cancel_own", true,
+                           "When the device itself emits one of the templates (its scene `emits`) and no other "
+                           "source emits the same signal: search that template in the raw audio and every other "
+                           "template in the audio with the device's own emission removed (fitted subtraction, "
+                           "dsp::EmissionCanceller)."));
+    s.push_back(float_param("cancel_fir_s", 0.0005, 0.0, 0.02, "s",
+                      "Own-emission canceller: length of the fitted speaker-to-microphone response after the "
+                      "direct path (transducers, earliest reflections)."));
     s.push_back(enum_param("refine", std::string("phase"), {"phase", "gaussian", "parabolic"},
                            "Sub-sample timing: envelope fit then carrier phase (phase), or the envelope fit alone."));
     return s;
