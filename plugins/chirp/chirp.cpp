@@ -212,6 +212,8 @@ class ChirpDetector final : public Detector {
         }
       }
     }
+    mode_.assign(templates_, Mode::None);
+    cross_tables(templates, ctx.fft);
     origin_.assign(channels_, 0);
     started_ = false;
     expected_frame_ = 0;
@@ -253,7 +255,8 @@ class ChirpDetector final : public Detector {
       log_->warn("chirp: " + std::to_string(dropped_) + " detections dropped (event queue full)");
     if (log_)
       log_->debug("chirp: " + std::to_string(windows_) + " windows, " + std::to_string(windows_skipped_) +
-                  " template correlations skipped by the pre-screen");
+                  " template correlations skipped by the pre-screen, " + std::to_string(explained_) +
+                  " events dropped as another template's cross-correlation");
   }
 
  private:
@@ -267,7 +270,55 @@ class ChirpDetector final : public Detector {
     double thr_pow = 0.0;        // absolute threshold when the event opened
     double noise_at_open = 0.0;
     std::uint64_t valid_from = 0;  // first ring lag written in full for the open event
+    bool has_last = false;         // the last reported event's strongest lag and power
+    std::uint64_t last_lag = 0;
+    double last_pow = 0.0;
   };
+  enum class Mode : std::uint8_t { None, Skip, Full };  // a template's handling of the current window
+
+  /// [main] cross2_: for every ordered pair (t, y), t != y, |sum_j h_y[j + tau] a_t[j]|^2 for tau in
+  /// (-L_t, L_y) (index tau + L_t - 1), a_t = h_t + j H{h_t} (the analytic template: |.| is the envelope the correlator
+  /// gives for a unit copy of y starting tau lags before the lag of t).
+  void cross_tables(const std::vector<std::vector<float>>& templates, FftPlanner& planner) {
+    const std::size_t T = templates.size();
+    cross2_.assign(T * T, {});
+    if (T < 2) return;
+    std::vector<std::vector<double>> hil(T);
+    for (std::size_t t = 0; t < T; ++t) {
+      const std::vector<float>& h = templates[t];
+      const std::size_t n = std::bit_ceil(2 * h.size());
+      auto fft = planner.plan_real(n);
+      std::vector<float> buf(n, 0.0f), outv(n, 0.0f);
+      std::copy(h.begin(), h.end(), buf.begin());
+      std::vector<std::complex<float>> spec(n / 2 + 1);
+      fft->forward(buf.data(), spec.data());
+      spec[0] = spec[n / 2] = 0.0f;
+      for (std::size_t k = 1; k < n / 2; ++k) spec[k] = std::complex<float>(spec[k].imag(), -spec[k].real());  // -j
+      fft->inverse(spec.data(), outv.data());
+      hil[t].resize(h.size());
+      for (std::size_t j = 0; j < h.size(); ++j) hil[t][j] = outv[j] / static_cast<double>(n);
+    }
+    for (std::size_t t = 0; t < T; ++t)
+      for (std::size_t y = 0; y < T; ++y) {
+        if (t == y) continue;
+        const std::vector<float>& ht = templates[t];
+        const std::vector<float>& hy = templates[y];
+        const std::int64_t lt = static_cast<std::int64_t>(ht.size()), ly = static_cast<std::int64_t>(hy.size());
+        std::vector<float>& tab = cross2_[t * T + y];
+        tab.assign(static_cast<std::size_t>(lt + ly - 1), 0.0f);
+        for (std::int64_t tau = -(lt - 1); tau < ly; ++tau) {
+          // template t at lag k, signal y starting at m = k - tau: sample k + j is y's sample j + tau
+          double re = 0.0, im = 0.0;
+          const std::int64_t j0 = std::max<std::int64_t>(0, -tau), j1 = std::min<std::int64_t>(lt, ly - tau);
+          for (std::int64_t j = j0; j < j1; ++j) {
+            const double v = hy[static_cast<std::size_t>(j + tau)];
+            re += v * ht[static_cast<std::size_t>(j)];
+            im += v * hil[t][static_cast<std::size_t>(j)];
+          }
+          tab[static_cast<std::size_t>(tau + lt - 1)] = static_cast<float>(re * re + im * im);
+        }
+      }
+  }
 
   static dsp::SignalSpec lfm(double f0, double f1, double duration, double fade) {
     dsp::SignalSpec s;
@@ -311,6 +362,7 @@ class ChirpDetector final : public Detector {
         tr.next_lag = 0;
         tr.allowed = 0;
         tr.open = false;
+        tr.has_last = false;
       }
     }
     started_ = true;
@@ -338,12 +390,16 @@ class ChirpDetector final : public Detector {
   void window_transformed(std::uint32_t c, std::size_t cc, std::size_t count, EventSink& out) noexcept {
     ++windows_;
     const std::uint64_t base = corr_.window_start(cc);
+    // Pass 1: which templates need the full-rate correlation (each keeps its own output buffer), so
+    // that an event of one template finalized in pass 2 can see where the others are strong in this
+    // window (the wrong-template check, explained_by_other()).
     for (std::size_t t = 0; t < templates_; ++t) {
+      mode_[t] = Mode::None;
       if (cchan(c, t) != cc) continue;
       dsp::BandPrescreen& screen = screens_[c * templates_ + t];
       if (prescreen_ && !screen.pass(corr_.spectrum())) {
         ++windows_skipped_;
-        skip(c, t, base, count, out);
+        mode_[t] = Mode::Skip;
         screen.note_quiet(true);
         continue;
       }
@@ -355,9 +411,62 @@ class ChirpDetector final : public Detector {
         continue;
       }
       corr_.correlate(t);
-      const bool crossed = scan(c, cc, t, base, count, out);
-      if (prescreen_ && !crossed) screen.note_quiet(false);
+      mode_[t] = Mode::Full;
     }
+    win_base_ = base;
+    win_count_ = count;
+    for (std::size_t t = 0; t < templates_; ++t) {
+      if (mode_[t] == Mode::Skip) {
+        skip(c, t, base, count, out);
+      } else if (mode_[t] == Mode::Full) {
+        const bool crossed = scan(c, cc, t, base, count, out);
+        if (prescreen_ && !crossed) screens_[c * templates_ + t].note_quiet(false);
+      }
+    }
+    for (std::size_t t = 0; t < templates_; ++t) mode_[t] = Mode::None;
+  }
+
+  /// True when the power pk of template t's path at lag k is explained by a strong arrival of
+  /// another template searched in the same audio: its range cross-correlation with t (precomputed,
+  /// cross2_) at that lag offset, scaled by the other arrival's amplitude, is within kExplained of pk.
+  /// Evidence: the other template's open or last event, and its full-rate correlation in the window
+  /// being scanned (local maxima above its threshold).
+  bool explained_by_other(std::uint32_t c, std::size_t t, std::uint64_t k, double pk) const noexcept {
+    if (templates_ < 2) return false;
+    const std::size_t lt = corr_.template_length(t);
+    for (std::size_t y = 0; y < templates_; ++y) {
+      if (y == t || cchan(c, y) != cchan(c, t)) continue;
+      const std::vector<float>& table = cross2_[t * templates_ + y];
+      const std::size_t ly = corr_.template_length(y);
+      const double ey2 = corr_.template_energy(y) * corr_.template_energy(y);
+      auto predicted = [&](std::uint64_t m, double py) {
+        // tau = k - m in (-lt, ly): table index tau + lt - 1
+        const std::int64_t tau = static_cast<std::int64_t>(k) - static_cast<std::int64_t>(m);
+        if (tau <= -static_cast<std::int64_t>(lt) || tau >= static_cast<std::int64_t>(ly)) return 0.0;
+        return py / ey2 * table[static_cast<std::size_t>(tau + static_cast<std::int64_t>(lt) - 1)];
+      };
+      double pred = 0.0;
+      const Track& ty = tracks_[c * templates_ + y];
+      if (ty.open) pred = std::max(pred, predicted(ty.best_lag, ty.best));
+      if (ty.has_last) pred = std::max(pred, predicted(ty.last_lag, ty.last_pow));
+      if (mode_[y] == Mode::Full) {
+        const float* re = corr_.real(y);
+        const float* im = corr_.imag(y);
+        const double thr = std::max(ty.noise, std::numeric_limits<double>::min()) * threshold_;
+        const std::uint64_t lo = std::max<std::uint64_t>(win_base_ + 1, k + 1 > ly ? k + 1 - ly : 0);
+        const std::uint64_t hi = std::min<std::uint64_t>(win_base_ + win_count_ - 1, k + lt);
+        for (std::uint64_t m = lo; m < hi; ++m) {
+          const std::size_t i = static_cast<std::size_t>(m - win_base_);
+          const double p = re[i] * re[i] + im[i] * im[i];
+          if (p < thr) continue;
+          const double pm = re[i - 1] * re[i - 1] + im[i - 1] * im[i - 1];
+          const double pp = re[i + 1] * re[i + 1] + im[i + 1] * im[i + 1];
+          if (p >= pm && p >= pp) pred = std::max(pred, predicted(m, p));
+        }
+      }
+      if (pk < kExplained * pred) return true;
+    }
+    return false;
   }
 
   /// Lags [base, base + count) of a window the pre-screen skipped: nothing above the noise.
@@ -525,6 +634,13 @@ class ChirpDetector final : public Detector {
       return ring_pow_[r0 + (lag & ring_mask_)];
     };
     const double need = std::max(tr.thr_pow, ratio2_ * tr.best);
+    // An event whose strongest path is only the range cross-correlation of another template's strong
+    // arrival (the wrong template's sidelobe) is not reported.
+    if (explained_by_other(c, t, tr.best_lag, tr.best)) {
+      ++explained_;
+      tr.allowed = tr.best_lag + 1;
+      return;
+    }
     std::uint64_t k = tr.best_lag;
     const std::uint64_t from = std::max(tr.t0, tr.best_lag > window_frames_ ? tr.best_lag - window_frames_ : 0);
     for (std::uint64_t j = from; j <= tr.best_lag; ++j) {
@@ -532,7 +648,7 @@ class ChirpDetector final : public Detector {
       if (p < need || !ring_ok_[r0 + (j & ring_mask_)]) continue;
       const double before = j > 0 ? pow_at(j - 1) : 0.0;
       const double after = j + 1 <= tr.end ? pow_at(j + 1) : 0.0;
-      if (p >= before && p >= after) {
+      if (p >= before && p >= after && (j == tr.best_lag || !explained_by_other(c, t, j, p))) {
         k = j;
         break;
       }
@@ -592,6 +708,9 @@ class ChirpDetector final : public Detector {
     d.amplitude = static_cast<float>(std::max(fit.value, a0) / corr_.template_energy(t));
     if (!out.emit(Event{d})) ++dropped_;
     tr.allowed = k + spacing_frames_;
+    tr.has_last = true;
+    tr.last_lag = tr.best_lag;
+    tr.last_pow = tr.best;
   }
 
   static constexpr std::size_t kNoiseStride = 4;  // a multiple of every baseband decimation (4, 2)
@@ -600,6 +719,8 @@ class ChirpDetector final : public Detector {
   static constexpr double kBasebandMargin = 0.5;
   static constexpr double kMinCycleMargin = 0.3;  // multipath fit: agreement needed to change cycle
   static constexpr std::size_t kCancelTapsBefore = 4;  // canceller FIR taps before the integer start
+  // A path weaker than this multiple of another template's predicted cross-term is that cross-term.
+  static constexpr double kExplained = 4.0;  // 6 dB
 
   Track& track(std::uint32_t c, std::size_t t) noexcept { return tracks_[c * templates_ + t]; }
 
@@ -619,6 +740,10 @@ class ChirpDetector final : public Detector {
   bool prescreen_ = true;
   Refine refine_ = Refine::Phase;
   dsp::Correlator corr_;
+  std::vector<std::vector<float>> cross2_;  // [t * T + y]: |analytic xcorr of signal y with template t|^2 by tau
+  std::vector<Mode> mode_;
+  std::uint64_t win_base_ = 0, explained_ = 0;
+  std::size_t win_count_ = 0;
   int own_ = -1;                      // template the device emits itself (cancelled for the others), -1 = none
   dsp::EmissionCanceller canceller_;  // removes it from the audio the other templates are searched in
   std::vector<std::uint64_t> guard_;
