@@ -141,7 +141,7 @@ class ChirpDetector final : public Detector {
     // channels_ + c, fed by the canceller).
     own_ = -1;
     if (params.get_bool("cancel_own") && ctx.geometry != nullptr)
-      own_ = own_template(specs, *ctx.geometry, info.device);
+      own_ = own_template(specs, *ctx.geometry, ctx.device);
     if (own_ >= 0 && templates_ < 2) own_ = -1;  // nothing else to search for
     if (own_ >= 0) {
       dsp::EmissionCanceller::Options co;
