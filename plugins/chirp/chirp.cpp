@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "locus/dsp/correlator.hpp"
+#include "locus/dsp/emission_canceller.hpp"
 #include "locus/dsp/peak.hpp"
 #include "locus/dsp/prescreen.hpp"
 #include "locus/dsp/signals.hpp"
@@ -43,6 +44,31 @@ std::vector<dsp::SignalSpec> scene_lfms(std::span<const SceneSignal> scene_emits
     out.push_back(s);
   }
   return out;
+}
+
+/// Index in `specs` of the lfm the device itself emits (DeviceGeometry::emits_json) when no other
+/// source of the scene (scene_emits_json) emits the same signal; -1 when there is none. A signal that
+/// another source also emits is not cancelled: its arrivals from the other source would go with it.
+int own_template(const std::vector<dsp::SignalSpec>& specs, const DeviceGeometry& g, std::string_view device) {
+  auto same = [](const dsp::SignalSpec& a, const nlohmann::json& sig) {
+    return sig.is_object() && sig.value("type", std::string()) == "lfm" && sig.value("f0", 0.0) == a.f0_hz &&
+           sig.value("f1", 0.0) == a.f1_hz && sig.value("duration", 0.0) == a.duration_s &&
+           sig.value("fade", 0.0) == a.fade_s;
+  };
+  const nlohmann::json own = nlohmann::json::parse(g.emits_json ? g.emits_json : "[]", nullptr, false);
+  const nlohmann::json all = nlohmann::json::parse(g.scene_emits_json ? g.scene_emits_json : "[]", nullptr, false);
+  if (!own.is_array()) return -1;
+  for (std::size_t t = 0; t < specs.size(); ++t) {
+    const bool mine = std::any_of(own.begin(), own.end(), [&](const nlohmann::json& sig) { return same(specs[t], sig); });
+    if (!mine) continue;
+    bool shared = false;
+    if (all.is_array())
+      for (const auto& e : all)
+        if (e.is_object() && e.value("id", std::string()) != device && e.contains("signal") && same(specs[t], e["signal"]))
+          shared = true;
+    if (!shared) return static_cast<int>(t);
+  }
+  return -1;
 }
 
 enum class Refine : std::uint8_t { Phase, Gaussian, Parabolic };
@@ -107,8 +133,28 @@ class ChirpDetector final : public Detector {
     const auto fft_size = params.get_int("fft_size");
     if (fft_size != 0 && (fft_size < 0 || (fft_size & (fft_size - 1)) != 0))
       throw std::runtime_error("chirp: fft_size must be 0 (automatic) or a power of two, got " + std::to_string(fft_size));
+    // Own-emission cancellation: the device's own template is searched in the raw audio (correlator
+    // channel c), every other template in the audio with the own emission subtracted (channel
+    // channels_ + c, fed by the canceller).
+    own_ = -1;
+    if (params.get_bool("cancel_own") && ctx.geometry != nullptr)
+      own_ = own_template(specs, *ctx.geometry, ctx.device);
+    if (own_ >= 0 && templates_ < 2) own_ = -1;  // nothing else to search for
+    if (own_ >= 0) {
+      dsp::EmissionCanceller::Options co;
+      co.channels = channels_;
+      co.taps_before = kCancelTapsBefore;
+      co.taps_after = static_cast<std::size_t>(std::llround(params.get_float("cancel_fir_s") * rate_));
+      try {
+        canceller_.configure(templates[static_cast<std::size_t>(own_)], ctx.fft, co);
+      } catch (const std::invalid_argument& e) {
+        throw std::runtime_error(std::string("chirp: own-emission canceller: ") + e.what());
+      }
+      ctx.log.info("chirp: template " + std::to_string(own_) +
+                   " is this device's own emission: searched in the raw audio, the others after subtracting it");
+    }
     dsp::Correlator::Options opt;
-    opt.channels = channels_;
+    opt.channels = own_ >= 0 ? 2 * channels_ : channels_;
     opt.fft_size = static_cast<std::size_t>(fft_size);
     opt.analytic = true;
     opt.baseband = true;
@@ -163,6 +209,8 @@ class ChirpDetector final : public Detector {
         }
       }
     }
+    mode_.assign(templates_, Mode::None);
+    cross_tables(templates, ctx.fft);
     origin_.assign(channels_, 0);
     started_ = false;
     expected_frame_ = 0;
@@ -181,12 +229,15 @@ class ChirpDetector final : public Detector {
     const std::uint32_t nch = std::min(block.channels, channels_);
     for (std::uint32_t c = 0; c < nch; ++c) {
       const float* x = block.channel_data[c];
+      feed(c, c, x, block.frames, out);
+      if (own_ < 0) continue;
       std::size_t pos = 0;
       while (pos < block.frames) {
-        pos += corr_.push(c, x + pos, block.frames - pos);
-        if (corr_.full(c)) {
-          window(c, corr_.hop(), out);
-          corr_.advance(c);
+        pos += canceller_.push(c, x + pos, block.frames - pos);
+        if (canceller_.full(c)) {
+          const std::size_t n = canceller_.process(c);
+          feed(c, channels_ + c, canceller_.output(c), n, out);
+          canceller_.advance(c);
         }
       }
     }
@@ -201,7 +252,8 @@ class ChirpDetector final : public Detector {
       log_->warn("chirp: " + std::to_string(dropped_) + " detections dropped (event queue full)");
     if (log_)
       log_->debug("chirp: " + std::to_string(windows_) + " windows, " + std::to_string(windows_skipped_) +
-                  " template correlations skipped by the pre-screen");
+                  " template correlations skipped by the pre-screen, " + std::to_string(explained_) +
+                  " events dropped as another template's cross-correlation");
   }
 
  private:
@@ -215,7 +267,55 @@ class ChirpDetector final : public Detector {
     double thr_pow = 0.0;        // absolute threshold when the event opened
     double noise_at_open = 0.0;
     std::uint64_t valid_from = 0;  // first ring lag written in full for the open event
+    bool has_last = false;         // the last reported event's strongest lag and power
+    std::uint64_t last_lag = 0;
+    double last_pow = 0.0;
   };
+  enum class Mode : std::uint8_t { None, Skip, Full };  // a template's handling of the current window
+
+  /// [main] cross2_: for every ordered pair (t, y), t != y, |sum_j h_y[j + tau] a_t[j]|^2 for tau in
+  /// (-L_t, L_y) (index tau + L_t - 1), a_t = h_t + j H{h_t} (the analytic template: |.| is the envelope the correlator
+  /// gives for a unit copy of y starting tau lags before the lag of t).
+  void cross_tables(const std::vector<std::vector<float>>& templates, FftPlanner& planner) {
+    const std::size_t T = templates.size();
+    cross2_.assign(T * T, {});
+    if (T < 2) return;
+    std::vector<std::vector<double>> hil(T);
+    for (std::size_t t = 0; t < T; ++t) {
+      const std::vector<float>& h = templates[t];
+      const std::size_t n = std::bit_ceil(2 * h.size());
+      auto fft = planner.plan_real(n);
+      std::vector<float> buf(n, 0.0f), outv(n, 0.0f);
+      std::copy(h.begin(), h.end(), buf.begin());
+      std::vector<std::complex<float>> spec(n / 2 + 1);
+      fft->forward(buf.data(), spec.data());
+      spec[0] = spec[n / 2] = 0.0f;
+      for (std::size_t k = 1; k < n / 2; ++k) spec[k] = std::complex<float>(spec[k].imag(), -spec[k].real());  // -j
+      fft->inverse(spec.data(), outv.data());
+      hil[t].resize(h.size());
+      for (std::size_t j = 0; j < h.size(); ++j) hil[t][j] = outv[j] / static_cast<double>(n);
+    }
+    for (std::size_t t = 0; t < T; ++t)
+      for (std::size_t y = 0; y < T; ++y) {
+        if (t == y) continue;
+        const std::vector<float>& ht = templates[t];
+        const std::vector<float>& hy = templates[y];
+        const std::int64_t lt = static_cast<std::int64_t>(ht.size()), ly = static_cast<std::int64_t>(hy.size());
+        std::vector<float>& tab = cross2_[t * T + y];
+        tab.assign(static_cast<std::size_t>(lt + ly - 1), 0.0f);
+        for (std::int64_t tau = -(lt - 1); tau < ly; ++tau) {
+          // template t at lag k, signal y starting at m = k - tau: sample k + j is y's sample j + tau
+          double re = 0.0, im = 0.0;
+          const std::int64_t j0 = std::max<std::int64_t>(0, -tau), j1 = std::min<std::int64_t>(lt, ly - tau);
+          for (std::int64_t j = j0; j < j1; ++j) {
+            const double v = hy[static_cast<std::size_t>(j + tau)];
+            re += v * ht[static_cast<std::size_t>(j)];
+            im += v * hil[t][static_cast<std::size_t>(j)];
+          }
+          tab[static_cast<std::size_t>(tau + lt - 1)] = static_cast<float>(re * re + im * im);
+        }
+      }
+  }
 
   static dsp::SignalSpec lfm(double f0, double f1, double duration, double fade) {
     dsp::SignalSpec s;
@@ -228,15 +328,38 @@ class ChirpDetector final : public Detector {
     return s;
   }
 
+  /// Correlator channel of template t for audio channel c.
+  std::size_t cchan(std::uint32_t c, std::size_t t) const noexcept {
+    return own_ >= 0 && static_cast<int>(t) != own_ ? channels_ + c : c;
+  }
+
+  /// Pushes n samples into correlator channel cc (audio channel c), correlating every full window.
+  void feed(std::uint32_t c, std::size_t cc, const float* x, std::size_t n, EventSink& out) noexcept {
+    std::size_t pos = 0;
+    while (pos < n) {
+      pos += corr_.push(cc, x + pos, n - pos);
+      if (corr_.full(cc)) {
+        corr_.transform(cc);
+        window_transformed(c, cc, corr_.hop(), out);
+        corr_.advance(cc);
+      }
+    }
+  }
+
   void restart(std::uint64_t first_frame) noexcept {
     for (std::uint32_t c = 0; c < channels_; ++c) {
       corr_.reset(c, 0);
+      if (own_ >= 0) {
+        corr_.reset(channels_ + c, 0);
+        canceller_.reset(c, 0);
+      }
       origin_[c] = first_frame;
       for (std::size_t t = 0; t < templates_; ++t) {
         Track& tr = track(c, t);
         tr.next_lag = 0;
         tr.allowed = 0;
         tr.open = false;
+        tr.has_last = false;
       }
     }
     started_ = true;
@@ -245,26 +368,35 @@ class ChirpDetector final : public Detector {
   /// Correlates what is left of channel c's contiguous audio and closes its open events.
   void drain(std::uint32_t c, EventSink& out) noexcept {
     const std::size_t valid = corr_.flush(c);
-    if (valid > 0) window_transformed(c, valid, out);
+    if (valid > 0) window_transformed(c, c, valid, out);
+    if (own_ >= 0) {
+      const std::size_t n = canceller_.flush(c);
+      feed(c, channels_ + c, canceller_.output(c), n, out);
+      canceller_.reset(c, 0);
+      const std::size_t v = corr_.flush(channels_ + c);
+      if (v > 0) window_transformed(c, channels_ + c, v, out);
+    }
     for (std::size_t t = 0; t < templates_; ++t) {
       Track& tr = track(c, t);
       if (tr.open) finalize(c, t, out);
     }
   }
 
-  void window(std::uint32_t c, std::size_t count, EventSink& out) noexcept {
-    corr_.transform(c);
-    window_transformed(c, count, out);
-  }
-
-  void window_transformed(std::uint32_t c, std::size_t count, EventSink& out) noexcept {
+  /// Correlates the transformed window of correlator channel cc (audio channel c) with the templates
+  /// searched there and scans lags [window_start, window_start + count).
+  void window_transformed(std::uint32_t c, std::size_t cc, std::size_t count, EventSink& out) noexcept {
     ++windows_;
-    const std::uint64_t base = corr_.window_start(c);
+    const std::uint64_t base = corr_.window_start(cc);
+    // Pass 1: which templates need the full-rate correlation (each keeps its own output buffer), so
+    // that an event of one template finalized in pass 2 can see where the others are strong in this
+    // window (the wrong-template check, explained_by_other()).
     for (std::size_t t = 0; t < templates_; ++t) {
+      mode_[t] = Mode::None;
+      if (cchan(c, t) != cc) continue;
       dsp::BandPrescreen& screen = screens_[c * templates_ + t];
       if (prescreen_ && !screen.pass(corr_.spectrum())) {
         ++windows_skipped_;
-        skip(c, t, base, count, out);
+        mode_[t] = Mode::Skip;
         screen.note_quiet(true);
         continue;
       }
@@ -276,9 +408,62 @@ class ChirpDetector final : public Detector {
         continue;
       }
       corr_.correlate(t);
-      const bool crossed = scan(c, t, base, count, out);
-      if (prescreen_ && !crossed) screen.note_quiet(false);
+      mode_[t] = Mode::Full;
     }
+    win_base_ = base;
+    win_count_ = count;
+    for (std::size_t t = 0; t < templates_; ++t) {
+      if (mode_[t] == Mode::Skip) {
+        skip(c, t, base, count, out);
+      } else if (mode_[t] == Mode::Full) {
+        const bool crossed = scan(c, cc, t, base, count, out);
+        if (prescreen_ && !crossed) screens_[c * templates_ + t].note_quiet(false);
+      }
+    }
+    for (std::size_t t = 0; t < templates_; ++t) mode_[t] = Mode::None;
+  }
+
+  /// True when the power pk of template t's path at lag k is explained by a strong arrival of
+  /// another template searched in the same audio: its range cross-correlation with t (precomputed,
+  /// cross2_) at that lag offset, scaled by the other arrival's amplitude, is within kExplained of pk.
+  /// Evidence: the other template's open or last event, and its full-rate correlation in the window
+  /// being scanned (local maxima above its threshold).
+  bool explained_by_other(std::uint32_t c, std::size_t t, std::uint64_t k, double pk) const noexcept {
+    if (templates_ < 2) return false;
+    const std::size_t lt = corr_.template_length(t);
+    for (std::size_t y = 0; y < templates_; ++y) {
+      if (y == t || cchan(c, y) != cchan(c, t)) continue;
+      const std::vector<float>& table = cross2_[t * templates_ + y];
+      const std::size_t ly = corr_.template_length(y);
+      const double ey2 = corr_.template_energy(y) * corr_.template_energy(y);
+      auto predicted = [&](std::uint64_t m, double py) {
+        // tau = k - m in (-lt, ly): table index tau + lt - 1
+        const std::int64_t tau = static_cast<std::int64_t>(k) - static_cast<std::int64_t>(m);
+        if (tau <= -static_cast<std::int64_t>(lt) || tau >= static_cast<std::int64_t>(ly)) return 0.0;
+        return py / ey2 * table[static_cast<std::size_t>(tau + static_cast<std::int64_t>(lt) - 1)];
+      };
+      double pred = 0.0;
+      const Track& ty = tracks_[c * templates_ + y];
+      if (ty.open) pred = std::max(pred, predicted(ty.best_lag, ty.best));
+      if (ty.has_last) pred = std::max(pred, predicted(ty.last_lag, ty.last_pow));
+      if (mode_[y] == Mode::Full) {
+        const float* re = corr_.real(y);
+        const float* im = corr_.imag(y);
+        const double thr = std::max(ty.noise, std::numeric_limits<double>::min()) * threshold_;
+        const std::uint64_t lo = std::max<std::uint64_t>(win_base_ + 1, k + 1 > ly ? k + 1 - ly : 0);
+        const std::uint64_t hi = std::min<std::uint64_t>(win_base_ + win_count_ - 1, k + lt);
+        for (std::uint64_t m = lo; m < hi; ++m) {
+          const std::size_t i = static_cast<std::size_t>(m - win_base_);
+          const double p = re[i] * re[i] + im[i] * im[i];
+          if (p < thr) continue;
+          const double pm = re[i - 1] * re[i - 1] + im[i - 1] * im[i - 1];
+          const double pp = re[i + 1] * re[i + 1] + im[i + 1] * im[i + 1];
+          if (p >= pm && p >= pp) pred = std::max(pred, predicted(m, p));
+        }
+      }
+      if (pk < kExplained * pred) return true;
+    }
+    return false;
   }
 
   /// Lags [base, base + count) of a window the pre-screen skipped: nothing above the noise.
@@ -334,7 +519,8 @@ class ChirpDetector final : public Detector {
   }
 
   /// Scans lags [base, base + count) of template t's correlation; true if any crossed the threshold.
-  bool scan(std::uint32_t c, std::size_t t, std::uint64_t base, std::size_t count, EventSink& out) noexcept {
+  bool scan(std::uint32_t c, std::size_t cc, std::size_t t, std::uint64_t base, std::size_t count,
+            EventSink& out) noexcept {
     Track& tr = track(c, t);
     const float* re = corr_.real(t);
     const float* im = corr_.imag(t);
@@ -374,7 +560,7 @@ class ChirpDetector final : public Detector {
     // Energy of the input under each lag (running sum over the template length) for the correlation
     // coefficient rho^2 = |z|^2 / (sum h^2 * sum x^2): ~1 for a matching chirp, ~2/L for noise, and
     // small for the range sidelobes of a loud chirp and its cross-terms with other templates.
-    const float* xs = corr_.samples(c);
+    const float* xs = corr_.samples(cc);
     const std::size_t len = corr_.template_length(t);
     const double eh = corr_.template_energy(t);
     // Computed lazily (only lags above the threshold need it): slid forward from the last lag it was
@@ -445,6 +631,13 @@ class ChirpDetector final : public Detector {
       return ring_pow_[r0 + (lag & ring_mask_)];
     };
     const double need = std::max(tr.thr_pow, ratio2_ * tr.best);
+    // An event whose strongest path is only the range cross-correlation of another template's strong
+    // arrival (the wrong template's sidelobe) is not reported.
+    if (explained_by_other(c, t, tr.best_lag, tr.best)) {
+      ++explained_;
+      tr.allowed = tr.best_lag + 1;
+      return;
+    }
     std::uint64_t k = tr.best_lag;
     const std::uint64_t from = std::max(tr.t0, tr.best_lag > window_frames_ ? tr.best_lag - window_frames_ : 0);
     for (std::uint64_t j = from; j <= tr.best_lag; ++j) {
@@ -452,7 +645,7 @@ class ChirpDetector final : public Detector {
       if (p < need || !ring_ok_[r0 + (j & ring_mask_)]) continue;
       const double before = j > 0 ? pow_at(j - 1) : 0.0;
       const double after = j + 1 <= tr.end ? pow_at(j + 1) : 0.0;
-      if (p >= before && p >= after) {
+      if (p >= before && p >= after && (j == tr.best_lag || !explained_by_other(c, t, j, p))) {
         k = j;
         break;
       }
@@ -512,6 +705,9 @@ class ChirpDetector final : public Detector {
     d.amplitude = static_cast<float>(std::max(fit.value, a0) / corr_.template_energy(t));
     if (!out.emit(Event{d})) ++dropped_;
     tr.allowed = k + spacing_frames_;
+    tr.has_last = true;
+    tr.last_lag = tr.best_lag;
+    tr.last_pow = tr.best;
   }
 
   static constexpr std::size_t kNoiseStride = 4;  // a multiple of every baseband decimation (4, 2)
@@ -519,6 +715,9 @@ class ChirpDetector final : public Detector {
   // Extra margin (-3 dB) of the baseband screen for noise and interference between decimated lags.
   static constexpr double kBasebandMargin = 0.5;
   static constexpr double kMinCycleMargin = 0.3;  // multipath fit: agreement needed to change cycle
+  static constexpr std::size_t kCancelTapsBefore = 4;  // canceller FIR taps before the integer start
+  // A path weaker than this multiple of another template's predicted cross-term is that cross-term.
+  static constexpr double kExplained = 4.0;  // 6 dB
 
   Track& track(std::uint32_t c, std::size_t t) noexcept { return tracks_[c * templates_ + t]; }
 
@@ -538,6 +737,12 @@ class ChirpDetector final : public Detector {
   bool prescreen_ = true;
   Refine refine_ = Refine::Phase;
   dsp::Correlator corr_;
+  std::vector<std::vector<float>> cross2_;  // [t * T + y]: |analytic xcorr of signal y with template t|^2 by tau
+  std::vector<Mode> mode_;
+  std::uint64_t win_base_ = 0, explained_ = 0;
+  std::size_t win_count_ = 0;
+  int own_ = -1;                      // template the device emits itself (cancelled for the others), -1 = none
+  dsp::EmissionCanceller canceller_;  // removes it from the audio the other templates are searched in
   std::vector<std::uint64_t> guard_;
   std::vector<std::uint64_t> span_;
   std::size_t ring_size_ = 0, ring_mask_ = 0;
@@ -595,6 +800,14 @@ const ParamSchema& schema() {
     s.push_back(int_param("fft_size", std::int64_t{0}, 0, 1 << 22, "",
                           "Overlap-save FFT size (a power of two larger than the longest template); 0 = 4x the "
                           "longest template."));
+    s.push_back(bool_param("cancel_own", true,
+                           "When the device itself emits one of the templates (its scene `emits`) and no other "
+                           "source emits the same signal: search that template in the raw audio and every other "
+                           "template in the audio with the device's own emission removed (fitted subtraction, "
+                           "dsp::EmissionCanceller)."));
+    s.push_back(float_param("cancel_fir_s", 0.0005, 0.0, 0.02, "s",
+                      "Own-emission canceller: length of the fitted speaker-to-microphone response after the "
+                      "direct path (transducers, earliest reflections)."));
     s.push_back(enum_param("refine", std::string("phase"), {"phase", "gaussian", "parabolic"},
                            "Sub-sample timing: envelope fit then carrier phase (phase), or the envelope fit alone."));
     return s;

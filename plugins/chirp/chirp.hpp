@@ -28,6 +28,16 @@
 //      power; = received energy over 2 sigma^2 for white noise); amplitude = |z_peak| / sum h^2 (the
 //      received chirp's amplitude relative to the template's); confidence = 1 - 10^(-(snr_db -
 //      threshold_db)/10).
+//   6. Own emission (`cancel_own`, TUM's overlapping exchanges): when the device emits one of the
+//      templates itself (DeviceGeometry::emits_json) and no other source emits that signal, the audio
+//      of each channel also goes through dsp::EmissionCanceller (matched filter, least-squares FIR fit
+//      of the own emission, fitted subtraction) into a second correlator channel; the own template is
+//      searched in the raw audio, every other template in the cleaned audio. Latency: + up to one
+//      canceller window.
+//   7. Wrong template: an event (or an earlier path candidate) of template X whose power is within
+//      6 dB of the range cross-correlation that a strong arrival of another template Y searched in the
+//      same audio predicts there (|xcorr(h_Y, analytic h_X)|^2 tabulated in configure, scaled by Y's
+//      peak power) is Y's cross-term, not an arrival of X: the event is dropped / the candidate skipped.
 // Streaming: every lag is produced by exactly one window, so detections that straddle block or window
 // boundaries are found exactly once and nothing depends on the block size. Latency: up to one FFT
 // window (fft_size frames) plus one template length after the strongest path.

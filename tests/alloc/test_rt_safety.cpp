@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "locus/audio_ring.hpp"
+#include "locus/dsp/emission_canceller.hpp"
 #include "locus/dsp/signals.hpp"
 #include "locus/event_bus.hpp"
 #include "locus/fftw_planner.hpp"
@@ -432,6 +433,122 @@ TEST(RtSafety, ChirpMultipathFitDoesNotAllocateOrLock) {
   EXPECT_EQ(frees, 0);
   EXPECT_EQ(locks, 0);
   EXPECT_GE(sink.events.size(), kBeeps - 1) << "the beeps must be detected for the test to mean anything";
+}
+
+// A working TUM device: its own up-chirp (loud, through the own-emission canceller) overlapped by the
+// other device's down-chirp 40 dB weaker, 2 channels, templates from the scene (chirp `cancel_own`),
+// and dsp::EmissionCanceller on its own: process() and flush() never allocate or lock.
+TEST(RtSafety, ChirpOwnEmissionCancellerDoesNotAllocateOrLock) {
+  Registry registry;
+  register_builtins(registry);
+  test::TestHost host;
+  FftwPlanner fftw({}, /*measure=*/false);
+  const locus_plugin_descriptor* d = registry.find_plugin("chirp");
+  ASSERT_NE(d, nullptr);
+  Params params = Params::defaults(*d->schema());
+  params.set("from_scene", true);
+  constexpr std::uint32_t kBlock = 256;
+  constexpr double kFs = 44100.0;
+  StreamInfo info;
+  info.device = "A";
+  info.channels = 2;
+  info.sample_rate_hz = kFs;
+  info.max_block_frames = kBlock;
+  DeviceGeometry geometry;
+  geometry.mic_count = 2;
+  geometry.has_speaker = true;
+  geometry.emits_json = R"([{"type":"lfm","f0":2000,"f1":8000,"duration":0.04,"fade":0.005}])";
+  geometry.scene_emits_json =
+      R"([{"id":"A","signal":{"type":"lfm","f0":2000,"f1":8000,"duration":0.04,"fade":0.005}},)"
+      R"({"id":"D","signal":{"type":"lfm","f0":8000,"f1":2000,"duration":0.04,"fade":0.005}}])";
+  auto detector = registry.create_detector("chirp");
+  HostContext ctx{host.log, host.clock, fftw, host.link, "chirp", "A", &geometry};
+  detector->configure(info, params, ctx);
+
+  dsp::SignalSpec up;
+  up.type = "lfm";
+  up.f0_hz = 2000;
+  up.f1_hz = 8000;
+  up.duration_s = 0.04;
+  up.fade_s = 0.005;
+  dsp::SignalSpec down = up;
+  down.f0_hz = 8000;
+  down.f1_hz = 2000;
+  const dsp::SignalEvaluator eu(up, kFs), ed(down, kFs);
+  constexpr std::size_t kRounds = 10, kPeriod = 14700;
+  std::vector<float> audio[2];
+  for (auto& a : audio) a.assign(kRounds * kPeriod + 4096, 0.0f);
+  std::uint32_t seed = 99;
+  for (std::size_t n = 0; n < audio[0].size(); ++n)
+    for (auto& a : audio) {
+      seed = seed * 1664525u + 1013904223u;
+      a[n] = 1e-5f * (static_cast<float>(seed >> 8) / 16777216.0f - 0.5f);
+    }
+  for (std::size_t r = 0; r < kRounds; ++r)
+    for (std::size_t ch = 0; ch < 2; ++ch) {
+      const double own = 3000.0 + static_cast<double>(r * kPeriod) + 0.3 * static_cast<double>(ch);
+      const double other = own + 60.0 * static_cast<double>(r) + 11.7;  // 0..12 ms after the own tone
+      for (std::size_t n = 0; n < 2400; ++n) {
+        const double k = std::floor(own) + static_cast<double>(n);
+        audio[ch][static_cast<std::size_t>(k)] += static_cast<float>(0.5 * eu.value((k - own) / kFs) +
+                                                                     0.005 * ed.value((k - other) / kFs));
+      }
+    }
+  test::CollectingSink sink(1 << 12);
+  const float* chan[2];
+  AudioBlock block;
+  block.channel_data = chan;
+  block.channels = 2;
+  std::size_t pos = 0;
+  auto step = [&] {
+    chan[0] = audio[0].data() + pos;
+    chan[1] = audio[1].data() + pos;
+    block.frames = kBlock;
+    block.first_frame = pos;
+    detector->process_audio(block, sink);
+    pos += kBlock;
+  };
+  while (pos + kBlock <= kPeriod) step();
+  long allocs = 0, frees = 0, locks = 0;
+  {
+    RtSection rt;
+    while (pos + kBlock <= audio[0].size()) step();
+    allocs = rt.allocs();
+    frees = rt.frees();
+    locks = rt.locks();
+  }
+  EXPECT_EQ(allocs, 0);
+  EXPECT_EQ(frees, 0);
+  EXPECT_EQ(locks, 0);
+  std::size_t other_found = 0;
+  for (const Event& e : sink.events)
+    if (const auto* a = std::get_if<AudioDetection>(&e); a && a->template_index == 1) ++other_found;
+  EXPECT_GE(other_found, 2 * (kRounds - 2)) << "the overlapped tones must be found for the test to mean anything";
+
+  // The canceller alone, including flush() at the end of the stream.
+  dsp::EmissionCanceller canceller;
+  dsp::EmissionCanceller::Options o;
+  o.channels = 1;
+  canceller.configure(dsp::render_signal(up, kFs), fftw, o);
+  std::size_t cancelled_before = 0;
+  {
+    RtSection rt;
+    std::size_t p = 0;
+    while (p < audio[0].size()) {
+      p += canceller.push(0, audio[0].data() + p, std::min<std::size_t>(kBlock, audio[0].size() - p));
+      if (canceller.full(0)) {
+        canceller.process(0);
+        canceller.advance(0);
+      }
+    }
+    canceller.flush(0);
+    canceller.reset(0);
+    cancelled_before = canceller.cancelled(0);
+    EXPECT_EQ(rt.allocs(), 0);
+    EXPECT_EQ(rt.frees(), 0);
+    EXPECT_EQ(rt.locks(), 0);
+  }
+  EXPECT_EQ(cancelled_before, kRounds);
 }
 
 }  // namespace locus

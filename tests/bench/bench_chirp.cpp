@@ -4,6 +4,10 @@
 //   BM_ChirpDetector/prescreen:{0,1}   the whole detector (correlation, noise, earliest path, refine)
 //   BM_ChirpDetectorFftSize/fft_size:N the same with another overlap-save FFT size (default 8192)
 //   BM_ChirpDetector4x4                4 channels x 4 templates (x_realtime is per channel per template)
+//   BM_ChirpTumWorking/cancel_own:{0,1} a TUM working device: 2 channels, the scene's up and down
+//                                      chirps as templates, its own up chirp (0.5 FS) every 1/3 s overlapped
+//                                      20 ms later by the other's down chirp 40 dB weaker; with and
+//                                      without the own-emission canceller (x_realtime per channel per template)
 //   BM_CorrelatorOnly                  dsp::Correlator streaming, real output only (no detection)
 //   BM_DirectCorrelation               y[k] = sum_j x[k+j] h[j] over the same 9 s (the O(n m) baseline)
 // Counter x_realtime = seconds of audio processed per second of CPU time of the benchmark thread (per
@@ -135,6 +139,73 @@ BENCHMARK(BM_ChirpDetectorFftSize)->ArgName("fft_size")->Arg(4096)->Arg(16384)->
 
 void BM_ChirpDetector4x4(benchmark::State& state) { run_detector(state, 4, 4, false); }
 BENCHMARK(BM_ChirpDetector4x4)->Unit(benchmark::kMillisecond);
+
+/// 9 s of a TUM working device's mic: own up chirp at 0.5 every 1/3 s, the other's down chirp 40 dB
+/// weaker 20 ms later, white noise 70 dB below the own chirp.
+const std::vector<float>& tum_working_audio() {
+  static const std::vector<float> x = [] {
+    const auto up = dsp::render_signal(tum_chirp(2000, 8000), kFs), down = dsp::render_signal(tum_chirp(8000, 2000), kFs);
+    std::vector<float> v(static_cast<std::size_t>(kSeconds * kFs));
+    std::mt19937_64 rng(43);
+    std::normal_distribution<double> g(0, 0.5 * std::pow(10.0, -70.0 / 20.0));
+    for (float& s : v) s = static_cast<float>(g(rng));
+    for (double t = 0.1; t + 0.1 < kSeconds; t += 1.0 / 3.0) {
+      const auto n0 = static_cast<std::size_t>(t * kFs), n1 = n0 + static_cast<std::size_t>(0.02 * kFs);
+      for (std::size_t j = 0; j < up.size(); ++j) v[n0 + j] += 0.5f * up[j];
+      for (std::size_t j = 0; j < down.size(); ++j) v[n1 + j] += 0.005f * down[j];
+    }
+    return v;
+  }();
+  return x;
+}
+
+void BM_ChirpTumWorking(benchmark::State& state) {
+  const std::vector<float>& x = tum_working_audio();
+  constexpr std::uint32_t channels = 2;
+  test::TestHost host;
+  std::unique_ptr<Detector> det(chirp_descriptor()->create_detector());
+  Params p = Params::defaults(chirp_schema());
+  p.set("from_scene", true);
+  p.set("cancel_own", state.range(0) != 0);
+  DeviceGeometry geometry;
+  geometry.mic_count = channels;
+  geometry.has_speaker = true;
+  geometry.emits_json = R"([{"type":"lfm","f0":2000,"f1":8000,"duration":0.04,"fade":0.005}])";
+  geometry.scene_emits_json =
+      R"([{"id":"A","signal":{"type":"lfm","f0":2000,"f1":8000,"duration":0.04,"fade":0.005}},)"
+      R"({"id":"D","signal":{"type":"lfm","f0":8000,"f1":2000,"duration":0.04,"fade":0.005}}])";
+  StreamInfo info;
+  info.device = "A";
+  info.channels = channels;
+  info.sample_rate_hz = kFs;
+  info.max_block_frames = 1024;
+  HostContext ctx{host.log, host.clock, planner(), host.link, "chirp_bench", "A", &geometry};
+  det->configure(info, p, ctx);
+  std::vector<const float*> ptrs(channels);
+  test::CollectingSink sink(1 << 20);
+  std::uint64_t frame = 0;
+  std::size_t detections = 0;
+  for (auto _ : state) {
+    for (std::size_t pos = 0; pos < x.size(); pos += 1024) {
+      const std::size_t n = std::min<std::size_t>(1024, x.size() - pos);
+      for (auto& ptr : ptrs) ptr = x.data() + pos;
+      AudioBlock b;
+      b.channel_data = ptrs.data();
+      b.channels = channels;
+      b.frames = static_cast<std::uint32_t>(n);
+      b.first_frame = frame;
+      det->process_audio(b, sink);
+      frame += n;
+    }
+    detections += sink.events.size();
+    sink.events.clear();
+  }
+  const double audio_s = kSeconds * double(state.iterations()) * channels * 2.0;
+  state.counters["x_realtime"] = benchmark::Counter(audio_s, benchmark::Counter::kIsRate);
+  state.counters["detections_per_pass"] =
+      double(detections) / double(std::max<benchmark::IterationCount>(1, state.iterations()));
+}
+BENCHMARK(BM_ChirpTumWorking)->ArgName("cancel_own")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 void BM_CorrelatorOnly(benchmark::State& state) {
   const std::vector<float>& x = audio();

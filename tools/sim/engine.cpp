@@ -501,7 +501,8 @@ class DeviceRenderer {
     for (const PathWindow& w : windows) {
       ++report.paths;
       const Image& im = images_[w.image];
-      const double g = base_gain * im.gain * (w.image == 0 ? obstruct : 1.0);
+      const double self = e.source_id == dev_.id ? dev_.self_gain : 1.0;
+      const double g = base_gain * im.gain * (w.image == 0 ? obstruct * self : 1.0);
       auto& out = buf[w.mic];
       const Eigen::Vector3d mic_static = rx_static ? mic_world(w.mic, 0.0) : Eigen::Vector3d::Zero();
       const Eigen::Vector3d spk_static = src_static ? spk_world(s, im, 0.0) : Eigen::Vector3d::Zero();

@@ -10,6 +10,12 @@
 //   track=static  : M stands at a random test location near its corner (the paper used 25 locations)
 //   track=ellipse : M rides a toy train on a 31 cm × 58 cm elliptical track, 5.9 s per round, its
 //                   heading following the track.
+//   overlap=1     : only the working pair N1 (2->8 kHz) and M (8->2 kHz) emits, every round, the second
+//                   tone 0..overlap_max_s (40 ms) after the first (random order), so the tones overlap
+//                   as under the paper's loose sync (Sec. VII-A); N2, N3 monitor. near_far_db > 0 sets
+//                   the own tone's direct path at each working device's nearest mic that many dB above
+//                   the other's (a coupling gain through the case), and every mic gain keeps the own
+//                   tone's peak at about half of full scale (no clipping).
 // Deviation: Fig. 12's exact coordinates are not in the text; the devices stand at the corners of a
 // 1.6 m square around the room centre, on tripods at 0.8-1.2 m.
 #include <cmath>
@@ -44,6 +50,9 @@ Simulation make_tum(const FamilyOptions& opts) {
   const DifficultyProfile prof = difficulty_profile(opts.difficulty);
   const std::string track = opts.get_choice("track", "static", {"static", "ellipse"});
   const double round_s = opts.get_double("round_s", 1.0 / 3.0, 0.2, 10.0);
+  const bool overlap = opts.get_bool("overlap", false);
+  const double overlap_max_s = opts.get_double("overlap_max_s", 0.040, 0.0, 1.0);
+  const double near_far_db = opts.get_double("near_far_db", 0.0, 0.0, 90.0);
   opts.finish("tum");
 
   Simulation sim;
@@ -66,8 +75,9 @@ Simulation make_tum(const FamilyOptions& opts) {
       {"htc_m9", {{0.01, 0.070, 0.0}, {-0.01, -0.070, 0.0}}, {0.0, 0.072, 0.0}},
       {"note10", {{-0.12, 0.08, 0.0}, {0.12, 0.08, 0.0}}, {0.0, -0.085, 0.0}},
   };
-  const std::vector<dsp::SignalSpec> chirps = {tum_chirp(2000, 8000), tum_chirp(8000, 2000), tum_chirp(2500, 7500),
-                                               tum_chirp(7500, 2500)};
+  std::vector<dsp::SignalSpec> chirps = {tum_chirp(2000, 8000), tum_chirp(8000, 2000), tum_chirp(2500, 7500),
+                                         tum_chirp(7500, 2500)};
+  if (overlap) chirps[3] = chirps[1];  // the working pair N1, M: up and down 2-8 kHz
   const Eigen::Vector2d centre(2.65, 3.0);
   struct Fixed {
     const char* id;
@@ -87,7 +97,7 @@ Simulation make_tum(const FamilyOptions& opts) {
     d.id = f.id;
     d.mics_body_m = hw[i].mics;
     d.speaker_body_m = hw[i].speaker;
-    d.emits = {chirps[i]};
+    if (!overlap || i == 0 || i == 3) d.emits = {chirps[i]};
     d.clock = draw_clock(prof, clocks);
     const Eigen::Vector2d xy = centre + f.corner;
     if (std::string(f.id) != "M") {
@@ -127,6 +137,26 @@ Simulation make_tum(const FamilyOptions& opts) {
       if (layout.bernoulli(prof.obstruction_probability))
         sim.acoustics.obstructions.push_back(Obstruction{place[i].id, place[j].id, prof.obstruction_db});
 
+  if (overlap) {
+    // Working pair: N1 (devices[0]) and M (devices[3]). Own tone at the nearest mic near_far_db above
+    // the other's direct path (at t = 0), every mic gain such that the own tone peaks at ~0.5 FS.
+    const double rmin = sim.acoustics.min_distance_m;
+    for (std::size_t i : {std::size_t{0}, std::size_t{3}}) {
+      DeviceModel& d = sim.devices[i];
+      const DeviceModel& o = sim.devices[i == 0 ? 3 : 0];
+      const Pose p = d.trajectory->pose(0.0), q = o.trajectory->pose(0.0);
+      double r_self = 1e9, r_other = 1.0;
+      for (const auto& m : d.mics_body_m) {
+        const double r = std::max(rmin, (m - *d.speaker_body_m).norm());
+        if (r < r_self) {
+          r_self = r;
+          r_other = (p.to_world(m) - q.to_world(*o.speaker_body_m)).norm();
+        }
+      }
+      if (near_far_db > 0.0) d.self_gain = std::pow(10.0, near_far_db / 20.0) * r_self / r_other;
+      d.mic_gain = 0.5 * r_self / (sim.acoustics.level_at_1m * d.source_level * d.self_gain);
+    }
+  }
   // tone exchange: rounds every round_s, device i in slot i; loose sync error fixed per device
   const double t0 = prof.offset_s_max + 0.5;
   const double slot = round_s / static_cast<double>(place.size());
@@ -135,6 +165,21 @@ Simulation make_tum(const FamilyOptions& opts) {
   for (int r = 0;; ++r) {
     const double start = t0 + r * round_s;
     if (start + round_s + prof.latency.max_s + 0.2 > sim.duration_s) break;
+    if (overlap) {
+      // The sound leaves the speaker at a drawn time (command = start of sound - latency).
+      const double offset = latency.uniform(0.0, overlap_max_s);
+      const bool n1_first = latency.bernoulli(0.5);
+      for (std::size_t i : {std::size_t{0}, std::size_t{3}}) {
+        Emission e;
+        e.source_id = place[i].id;
+        e.signal_index = 0;
+        e.latency_s = prof.latency.draw(latency);
+        const double sound = start + prof.latency.max_s + (((i == 0) == n1_first) ? 0.0 : offset);
+        e.t_command_true_s = sound - e.latency_s;
+        sim.emissions.push_back(e);
+      }
+      continue;
+    }
     for (std::size_t i = 0; i < place.size(); ++i) {
       Emission e;
       e.source_id = place[i].id;
@@ -147,6 +192,9 @@ Simulation make_tum(const FamilyOptions& opts) {
   if (sim.emissions.empty())
     throw std::invalid_argument("duration " + scene::format_double(sim.duration_s) + " s leaves no room for a tone round");
   sim.environment_yaml = "track: " + track + ", round_s: " + scene::format_double(round_s);
+  if (overlap)
+    sim.environment_yaml += ", overlap: true, overlap_max_s: " + scene::format_double(overlap_max_s) +
+                            ", near_far_db: " + scene::format_double(near_far_db);
   return sim;
 }
 

@@ -97,6 +97,9 @@ class Correlator {
   /// Channel ch's window: sample i is input sample window_start(ch) + i (filled(ch) of them), so the
   /// samples under output i are samples(ch)[i .. i + L - 1]. Valid until the next push/advance.
   const float* samples(std::size_t ch) const noexcept { return &window_[ch * n_]; }
+  /// [RT] The same window, writable: a caller may change samples after transform() (e.g. subtract a
+  /// known signal, dsp::EmissionCanceller); what advance() keeps carries into the next window.
+  float* samples_mutable(std::size_t ch) noexcept { return &window_[ch * n_]; }
   /// Lag (input sample index since the last reset) of output 0 of channel ch's current window.
   std::uint64_t window_start(std::size_t ch) const noexcept { return start_[ch]; }
 

@@ -155,6 +155,8 @@ struct DeviceModel {
   bool record_audio = true;                        ///< write <id>/audio.wav (needs mics)
   double source_level = 1.0;                       ///< speaker loudness (1 = AcousticModel::level_at_1m at 1 m)
   double mic_gain = 1.0;                           ///< linear gain before clipping
+  double self_gain = 1.0;                          ///< extra gain of the direct path of its OWN emissions to
+                                                   ///< its own mics (coupling through the case: near-far)
   BandLimit speaker_response{300.0, 20000.0, 2};
   BandLimit mic_response{60.0, 20000.0, 2};
   std::shared_ptr<ImuModel> imu;                   ///< write <id>/imu.csv when set

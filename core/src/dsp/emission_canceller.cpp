@@ -1,0 +1,206 @@
+// Own-emission canceller (method and real-time contract in emission_canceller.hpp).
+#include "locus/dsp/emission_canceller.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
+#include "locus/dsp/peak.hpp"
+#include "locus/fft.hpp"
+
+namespace locus::dsp {
+
+EmissionCanceller::EmissionCanceller() = default;
+EmissionCanceller::~EmissionCanceller() = default;
+EmissionCanceller::EmissionCanceller(EmissionCanceller&&) noexcept = default;
+EmissionCanceller& EmissionCanceller::operator=(EmissionCanceller&&) noexcept = default;
+
+void EmissionCanceller::configure(const std::vector<float>& h, FftPlanner& planner, const Options& options) {
+  if (h.empty()) throw std::invalid_argument("EmissionCanceller: empty template");
+  if (options.channels == 0) throw std::invalid_argument("EmissionCanceller: channels must be > 0");
+  if (!std::isfinite(options.threshold_db) || !std::isfinite(options.min_coefficient) ||
+      !(options.min_coefficient >= 0.0 && options.min_coefficient <= 1.0))
+    throw std::invalid_argument("EmissionCanceller: threshold_db must be finite and min_coefficient in [0, 1]");
+  if (!std::isfinite(options.regularization) || options.regularization < 0.0)
+    throw std::invalid_argument("EmissionCanceller: regularization must be >= 0");
+  if (options.taps_before + options.taps_after > 4096)
+    throw std::invalid_argument("EmissionCanceller: at most 4096 FIR taps");
+  opt_ = options;
+  len_ = h.size();
+  taps_ = opt_.taps_before + opt_.taps_after + 1;
+  padded_ = len_ + taps_ - 1;
+  h_.assign(h.begin(), h.end());
+  energy_ = 0.0;
+  for (double v : h_) energy_ += v * v;
+  if (!(energy_ > 0.0) || !std::isfinite(energy_))
+    throw std::invalid_argument("EmissionCanceller: the template has no (finite) energy");
+
+  // The padded template: a lag i of its correlation is the start i + P of h, and the whole fit support
+  // [i, i + padded) lies in the window for every lag a window produces.
+  std::vector<float> hp(padded_, 0.0f);
+  std::copy(h.begin(), h.end(), hp.begin() + static_cast<std::ptrdiff_t>(opt_.taps_before));
+  Correlator::Options co;
+  co.channels = opt_.channels;
+  co.fft_size = opt_.fft_size;
+  co.analytic = true;
+  co.baseband = true;
+  corr_.configure({hp}, planner, co);
+
+  // Normal equations of the FIR fit: R_ij = r_hh(|i - j|) + lambda r_hh(0) delta_ij; lower Cholesky.
+  std::vector<double> r(taps_, 0.0);
+  for (std::size_t d = 0; d < taps_ && d < len_; ++d) {
+    double s = 0.0;
+    for (std::size_t j = 0; j + d < len_; ++j) s += h_[j] * h_[j + d];
+    r[d] = s;
+  }
+  chol_.assign(taps_ * taps_, 0.0);
+  const double ridge = opt_.regularization * energy_;
+  for (std::size_t i = 0; i < taps_; ++i) {
+    for (std::size_t j = 0; j <= i; ++j) {
+      double s = r[i - j] + (i == j ? ridge : 0.0);
+      for (std::size_t k = 0; k < j; ++k) s -= chol_[i * taps_ + k] * chol_[j * taps_ + k];
+      if (i == j) {
+        if (!(s > 1e-12 * energy_))
+          throw std::invalid_argument("EmissionCanceller: the FIR fit is singular for this template (raise "
+                                      "regularization or use fewer taps)");
+        chol_[i * taps_ + i] = std::sqrt(s);
+      } else {
+        chol_[i * taps_ + j] = s / chol_[j * taps_ + j];
+      }
+    }
+  }
+  b_.assign(taps_, 0.0);
+  g_.assign(taps_, 0.0);
+  threshold_ = std::pow(10.0, opt_.threshold_db / 10.0);
+  min_rho2_ = opt_.min_coefficient * opt_.min_coefficient;
+  const std::size_t n = corr_.fft_size();
+  pow_.assign(n, 0.0f);
+  sorted_.assign(n, 0.0f);
+  masked_.assign(n, 0);
+  count_.assign(opt_.channels, 0);
+  history_.assign(opt_.channels * kHistory, Fit{});
+}
+
+std::size_t EmissionCanceller::process(std::size_t ch) noexcept {
+  corr_.transform(ch);
+  search(ch, corr_.hop());
+  return corr_.hop();
+}
+
+std::size_t EmissionCanceller::flush(std::size_t ch) noexcept {
+  const std::size_t lags = corr_.flush(ch);
+  if (lags > 0) search(ch, lags);
+  return corr_.filled(ch);
+}
+
+void EmissionCanceller::reset(std::size_t ch, std::uint64_t next_index) noexcept { corr_.reset(ch, next_index); }
+
+void EmissionCanceller::search(std::size_t ch, std::size_t lags) noexcept {
+  float* pw = pow_.data();
+  // Decimated baseband screen first (nearly every window holds no emission).
+  const std::size_t d = corr_.baseband_decimation(0);
+  if (d > 1 && lags == corr_.hop()) {
+    corr_.correlate_baseband(0);
+    const std::complex<float>* z = corr_.baseband(0);
+    const std::size_t nm = (lags + d - 1) / d;
+    float pmax = 0.0f;
+    for (std::size_t m = 0; m < nm; ++m) {
+      pw[m] = std::norm(z[m]);
+      pmax = std::max(pmax, pw[m]);
+      sorted_[m] = pw[m];
+    }
+    const auto mid = sorted_.begin() + static_cast<std::ptrdiff_t>(nm / 2);
+    std::nth_element(sorted_.begin(), mid, sorted_.begin() + static_cast<std::ptrdiff_t>(nm));
+    const double noise = std::max(static_cast<double>(*mid) / std::numbers::ln2, std::numeric_limits<double>::min());
+    // -3 dB margin below the worst between-lag loss: a peak between decimated lags is not missed.
+    if (pmax <= 0.5 * corr_.baseband_peak_ratio(0) * threshold_ * noise) return;
+  }
+  corr_.correlate(0);
+  const float* re = corr_.real(0);
+  const float* im = corr_.imag(0);
+  std::size_t m = 0;
+  for (std::size_t i = 0; i < lags; ++i) {
+    pw[i] = re[i] * re[i] + im[i] * im[i];
+    if (i % 4 == 0) sorted_[m++] = pw[i];
+  }
+  const auto mid = sorted_.begin() + static_cast<std::ptrdiff_t>(m / 2);
+  std::nth_element(sorted_.begin(), mid, sorted_.begin() + static_cast<std::ptrdiff_t>(m));
+  const double noise = std::max(static_cast<double>(*mid) / std::numbers::ln2, std::numeric_limits<double>::min());
+  const double thr = noise * threshold_;
+  std::fill(masked_.begin(), masked_.begin() + static_cast<std::ptrdiff_t>(lags), std::uint8_t{0});
+  const float* x = corr_.samples(ch);
+  for (std::size_t round = 0; round < opt_.max_per_window; ++round) {
+    std::size_t best = lags;
+    float pbest = 0.0f;
+    for (std::size_t i = 0; i < lags; ++i)
+      if (!masked_[i] && pw[i] > pbest) {
+        pbest = pw[i];
+        best = i;
+      }
+    if (best == lags || !(pbest > thr)) break;
+    // Correlation values within one padded template of this lag change with the subtraction (or
+    // belong to the same event): never candidates again in this window.
+    const std::size_t lo = best >= padded_ ? best - padded_ + 1 : 0;
+    const std::size_t hi = std::min(lags, best + padded_);
+    std::fill(masked_.begin() + static_cast<std::ptrdiff_t>(lo), masked_.begin() + static_cast<std::ptrdiff_t>(hi),
+              std::uint8_t{1});
+    double ex = 0.0;
+    const float* xs = x + best + opt_.taps_before;
+    for (std::size_t j = 0; j < len_; ++j) ex += static_cast<double>(xs[j]) * xs[j];
+    if (!(ex > 0.0)) continue;
+    const double rho2 = static_cast<double>(pbest) / (energy_ * ex);
+    if (rho2 < min_rho2_) continue;  // not a clean copy of the template: leave it alone
+    fit_and_subtract(ch, best, pbest, std::sqrt(std::min(rho2, 1.0)));
+    // Peak position for the record (envelope fit around the integer peak).
+    Fit& f = history_[ch * kHistory + (count_[ch] - 1) % kHistory];
+    if (best > 0 && best + 1 < lags) {
+      const PeakFit pf = gaussian_peak(std::sqrt(pw[best - 1]), std::sqrt(pw[best]), std::sqrt(pw[best + 1]));
+      f.peak_lag += pf.offset;
+    }
+  }
+}
+
+void EmissionCanceller::fit_and_subtract(std::size_t ch, std::size_t i0, double pz, double coefficient) noexcept {
+  float* w = corr_.samples_mutable(ch) + i0;  // the fit support [i0, i0 + padded)
+  // b_t = sum_j w[t + j] h[j]: correlation of the support with h shifted by t - P.
+  double e0 = 0.0;
+  for (std::size_t j = 0; j < padded_; ++j) e0 += static_cast<double>(w[j]) * w[j];
+  for (std::size_t t = 0; t < taps_; ++t) {
+    double s = 0.0;
+    const float* ws = w + t;
+    for (std::size_t j = 0; j < len_; ++j) s += ws[j] * h_[j];
+    b_[t] = s;
+  }
+  // Solve L y = b, then L^T g = y.
+  for (std::size_t i = 0; i < taps_; ++i) {
+    double s = b_[i];
+    for (std::size_t k = 0; k < i; ++k) s -= chol_[i * taps_ + k] * g_[k];
+    g_[i] = s / chol_[i * taps_ + i];
+  }
+  for (std::size_t ii = taps_; ii-- > 0;) {
+    double s = g_[ii];
+    for (std::size_t k = ii + 1; k < taps_; ++k) s -= chol_[k * taps_ + ii] * g_[k];
+    g_[ii] = s / chol_[ii * taps_ + ii];
+  }
+  for (std::size_t t = 0; t < taps_; ++t) {
+    const float gt = static_cast<float>(g_[t]);
+    float* ws = w + t;
+    for (std::size_t j = 0; j < len_; ++j) ws[j] -= gt * static_cast<float>(h_[j]);
+  }
+  double e1 = 0.0;
+  for (std::size_t j = 0; j < padded_; ++j) e1 += static_cast<double>(w[j]) * w[j];
+
+  Fit& f = history_[ch * kHistory + count_[ch] % kHistory];
+  ++count_[ch];
+  const std::uint64_t base = corr_.window_start(ch) + i0;
+  f.start = base + opt_.taps_before;
+  f.peak_lag = static_cast<double>(base + opt_.taps_before);
+  f.amplitude = std::sqrt(pz) / energy_;
+  f.coefficient = coefficient;
+  f.cancelled_db = e1 > 0.0 ? 10.0 * std::log10(e0 / e1) : 300.0;
+}
+
+}  // namespace locus::dsp
