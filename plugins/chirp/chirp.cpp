@@ -46,26 +46,20 @@ std::vector<dsp::SignalSpec> scene_lfms(std::span<const SceneSignal> scene_emits
   return out;
 }
 
-/// Index in `specs` of the lfm the device itself emits (DeviceGeometry::emits_json) when no other
-/// source of the scene (scene_emits_json) emits the same signal; -1 when there is none. A signal that
+/// Index in `specs` of the lfm the device itself emits (DeviceGeometry::emits) when no other source of
+/// the scene (DeviceGeometry::scene_emits) emits the same signal; -1 when there is none. A signal that
 /// another source also emits is not cancelled: its arrivals from the other source would go with it.
 int own_template(const std::vector<dsp::SignalSpec>& specs, const DeviceGeometry& g, std::string_view device) {
-  auto same = [](const dsp::SignalSpec& a, const nlohmann::json& sig) {
-    return sig.is_object() && sig.value("type", std::string()) == "lfm" && sig.value("f0", 0.0) == a.f0_hz &&
-           sig.value("f1", 0.0) == a.f1_hz && sig.value("duration", 0.0) == a.duration_s &&
-           sig.value("fade", 0.0) == a.fade_s;
+  auto same = [](const dsp::SignalSpec& a, const SignalSpec& sig) {
+    return sig.type == "lfm" && sig.f0_hz == a.f0_hz && sig.f1_hz == a.f1_hz && sig.duration_s == a.duration_s &&
+           sig.fade_s == a.fade_s;
   };
-  const nlohmann::json own = nlohmann::json::parse(g.emits_json ? g.emits_json : "[]", nullptr, false);
-  const nlohmann::json all = nlohmann::json::parse(g.scene_emits_json ? g.scene_emits_json : "[]", nullptr, false);
-  if (!own.is_array()) return -1;
   for (std::size_t t = 0; t < specs.size(); ++t) {
-    const bool mine = std::any_of(own.begin(), own.end(), [&](const nlohmann::json& sig) { return same(specs[t], sig); });
+    const bool mine = std::any_of(g.emits.begin(), g.emits.end(), [&](const SignalSpec& sig) { return same(specs[t], sig); });
     if (!mine) continue;
     bool shared = false;
-    if (all.is_array())
-      for (const auto& e : all)
-        if (e.is_object() && e.value("id", std::string()) != device && e.contains("signal") && same(specs[t], e["signal"]))
-          shared = true;
+    for (const SceneSignal& e : g.scene_emits)
+      if (e.id != device && same(specs[t], e.signal)) shared = true;
     if (!shared) return static_cast<int>(t);
   }
   return -1;

@@ -457,10 +457,16 @@ TEST(RtSafety, ChirpOwnEmissionCancellerDoesNotAllocateOrLock) {
   DeviceGeometry geometry;
   geometry.mic_count = 2;
   geometry.has_speaker = true;
-  geometry.emits_json = R"([{"type":"lfm","f0":2000,"f1":8000,"duration":0.04,"fade":0.005}])";
-  geometry.scene_emits_json =
-      R"([{"id":"A","signal":{"type":"lfm","f0":2000,"f1":8000,"duration":0.04,"fade":0.005}},)"
-      R"({"id":"D","signal":{"type":"lfm","f0":8000,"f1":2000,"duration":0.04,"fade":0.005}}])";
+  SignalSpec up_chirp, down_chirp;
+  up_chirp.type = down_chirp.type = "lfm";
+  up_chirp.f0_hz = down_chirp.f1_hz = 2000;
+  up_chirp.f1_hz = down_chirp.f0_hz = 8000;
+  up_chirp.duration_s = down_chirp.duration_s = 0.04;
+  up_chirp.fade_s = down_chirp.fade_s = 0.005;
+  const std::vector<SignalSpec> own_emits{up_chirp};
+  const std::vector<SceneSignal> scene_emits{{"A", up_chirp}, {"D", down_chirp}};
+  geometry.emits = own_emits;
+  geometry.scene_emits = scene_emits;
   auto detector = registry.create_detector("chirp");
   HostContext ctx{host.log, host.clock, fftw, host.link, "chirp", "A", &geometry};
   detector->configure(info, params, ctx);

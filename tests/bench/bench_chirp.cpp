@@ -163,17 +163,23 @@ void BM_ChirpTumWorking(benchmark::State& state) {
   const std::vector<float>& x = tum_working_audio();
   constexpr std::uint32_t channels = 2;
   test::TestHost host;
-  std::unique_ptr<Detector> det(chirp_descriptor()->create_detector());
-  Params p = Params::defaults(chirp_schema());
+  std::unique_ptr<Detector> det(plugins::chirp::descriptor()->create_detector());
+  Params p = Params::defaults(plugins::chirp::schema());
   p.set("from_scene", true);
   p.set("cancel_own", state.range(0) != 0);
   DeviceGeometry geometry;
   geometry.mic_count = channels;
   geometry.has_speaker = true;
-  geometry.emits_json = R"([{"type":"lfm","f0":2000,"f1":8000,"duration":0.04,"fade":0.005}])";
-  geometry.scene_emits_json =
-      R"([{"id":"A","signal":{"type":"lfm","f0":2000,"f1":8000,"duration":0.04,"fade":0.005}},)"
-      R"({"id":"D","signal":{"type":"lfm","f0":8000,"f1":2000,"duration":0.04,"fade":0.005}}])";
+  SignalSpec up_chirp, down_chirp;
+  up_chirp.type = down_chirp.type = "lfm";
+  up_chirp.f0_hz = down_chirp.f1_hz = 2000;
+  up_chirp.f1_hz = down_chirp.f0_hz = 8000;
+  up_chirp.duration_s = down_chirp.duration_s = 0.04;
+  up_chirp.fade_s = down_chirp.fade_s = 0.005;
+  const std::vector<SignalSpec> own_emits{up_chirp};
+  const std::vector<SceneSignal> scene_emits{{"A", up_chirp}, {"D", down_chirp}};
+  geometry.emits = own_emits;
+  geometry.scene_emits = scene_emits;
   StreamInfo info;
   info.device = "A";
   info.channels = channels;
