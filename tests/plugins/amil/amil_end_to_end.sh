@@ -21,7 +21,7 @@ fi
 grep -q '"frame":"player_start@' "$tmp/est.jsonl" || { echo "estimates are not in the player_start@T frame"; exit 1; }
 status=0
 timeout 60 "$locus" eval "$tmp/scene" "$tmp/est.jsonl" --metric amil \
-  --min-located-fraction 1.0 --max-direction-error-deg 5 --max-unknown-targets 0 || status=$?
+  --min-located-fraction 1.0 --max-unflagged-direction-error-deg 3 --max-unknown-targets 0 || status=$?
 if [ "$status" -ne 0 ]; then
   echo "locus eval: bars missed (exit $status)"; cat "$tmp/replay.log"; exit 1
 fi
