@@ -219,7 +219,6 @@ class GroupScorer final : public GroupContext {
   }
 
  private:
-
   const std::set<std::string>& expected_set() {
     if (!expected_cache_) {
       auto v = expected_targets();
