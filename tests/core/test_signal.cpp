@@ -78,7 +78,7 @@ TEST(Signal, ErrorsNameTheFieldLineAndColumn) {
             "msg:1:1: missing required key 'f1' (expected 'f1' for type lfm)\n"
             "msg:1:1: missing required key 'duration' (expected 'duration' for type lfm)");
   EXPECT_EQ(parse_error("{type: lfm, f0: 1, f1: 2,\n duration: 0.1, amplitude: 2}"),
-            "msg:2:27: amplitude: value 2 out of range (expected 0..1)");
+            "msg:2:28: amplitude: value 2 out of range (expected 0..1)");
   EXPECT_EQ(parse_error(R"({"type":"lfm","f0":"high","f1":2,"duration":1})"),
             "msg:1:20: f0: expected a number, got 'high'");
   EXPECT_EQ(parse_error("{type: multitone, tones_hz: [100, -5], duration: 1}"),
