@@ -895,8 +895,17 @@ Solution solve(const std::vector<Beep>& beeps, const ListenerArrivals& arr, cons
     method = Method::Paper;
   }
 
-  if (method == Method::Paper || method == Method::PaperJointSkew)
-    return paper_solution(o, method, given_skew, cfg, std::move(sol));
+  if (method == Method::Paper || method == Method::PaperJointSkew) {
+    Solution p = paper_solution(o, method, given_skew, cfg, std::move(sol));
+    if (method != cfg.method) {
+      // Forced here by too few beeps: the skew is assumed, not measured; fewer equations than
+      // unknowns (x, y, skew, offset), so the answer may be far off (calibrate_session() skips it).
+      p.weak = true;
+      p.confidence *= 0.2;
+      p.note += "3 beeps: weak; ";
+    }
+    return p;
+  }
   return joint_solution(o, arr, method, cfg, std::move(sol));
 }
 
