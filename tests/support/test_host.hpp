@@ -30,6 +30,7 @@
 #include "locus/host.hpp"
 #include "locus/link.hpp"
 #include "locus/localizer.hpp"
+#include "locus/signal.hpp"
 
 namespace locus::test {
 
@@ -257,5 +258,21 @@ class NullSource : public AudioSource {
   void stop() override {}
   bool finished() const noexcept override { return true; }
 };
+
+/// TUM's working-pair chirps (2 -> 8 kHz up from `own_id`, 8 -> 2 kHz down from `other_id`, 40 ms, 5 ms
+/// fades) as the signals a DeviceGeometry points at: the device's own emits and the scene's.
+struct TumChirpSignals {
+  std::vector<SignalSpec> own;
+  std::vector<SceneSignal> scene;
+};
+inline TumChirpSignals tum_chirp_signals(const char* own_id, const char* other_id) {
+  SignalSpec up, down;
+  up.type = down.type = "lfm";
+  up.f0_hz = down.f1_hz = 2000;
+  up.f1_hz = down.f0_hz = 8000;
+  up.duration_s = down.duration_s = 0.04;
+  up.fade_s = down.fade_s = 0.005;
+  return TumChirpSignals{{up}, {{own_id, up}, {other_id, down}}};
+}
 
 }  // namespace locus::test
