@@ -29,7 +29,7 @@
 //      received chirp's amplitude relative to the template's); confidence = 1 - 10^(-(snr_db -
 //      threshold_db)/10).
 //   6. Own emission (`cancel_own`, TUM's overlapping exchanges): when the device emits one of the
-//      templates itself (DeviceGeometry::emits_json) and no other source emits that signal, the audio
+//      templates itself (DeviceGeometry::emits) and no other source emits that signal, the audio
 //      of each channel also goes through dsp::EmissionCanceller (matched filter, least-squares FIR fit
 //      of the own emission, fitted subtraction) into a second correlator channel; the own template is
 //      searched in the raw audio, every other template in the cleaned audio. Latency: + up to one

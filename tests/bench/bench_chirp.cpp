@@ -85,6 +85,31 @@ FftwPlanner& planner() {
   return p;
 }
 
+/// Feeds `x` (the same signal on every channel) through `det` in 1024-frame blocks once per benchmark
+/// iteration, the stream's frame counter running on; returns the detections of all passes.
+std::size_t run_passes(benchmark::State& state, Detector& det, const std::vector<float>& x, std::uint32_t channels) {
+  std::vector<const float*> ptrs(channels);
+  test::CollectingSink sink(1 << 20);
+  std::uint64_t frame = 0;
+  std::size_t detections = 0;
+  for (auto _ : state) {
+    for (std::size_t pos = 0; pos < x.size(); pos += 1024) {
+      const std::size_t n = std::min<std::size_t>(1024, x.size() - pos);
+      for (auto& ptr : ptrs) ptr = x.data() + pos;
+      AudioBlock b;
+      b.channel_data = ptrs.data();
+      b.channels = channels;
+      b.frames = static_cast<std::uint32_t>(n);
+      b.first_frame = frame;
+      det.process_audio(b, sink);
+      frame += n;
+    }
+    detections += sink.events.size();
+    sink.events.clear();
+  }
+  return detections;
+}
+
 void run_detector(benchmark::State& state, std::uint32_t channels, std::size_t templates, bool prescreen,
                   std::int64_t fft_size = 0) {
   const std::vector<float>& x = audio();
@@ -106,25 +131,7 @@ void run_detector(benchmark::State& state, std::uint32_t channels, std::size_t t
   info.max_block_frames = 1024;
   HostContext ctx{host.log, host.clock, planner(), host.link, "chirp_bench", "bench"};
   det->configure(info, p, ctx);
-  std::vector<const float*> ptrs(channels);
-  test::CollectingSink sink(1 << 20);
-  std::uint64_t frame = 0;
-  std::size_t detections = 0;
-  for (auto _ : state) {
-    for (std::size_t pos = 0; pos < x.size(); pos += 1024) {
-      const std::size_t n = std::min<std::size_t>(1024, x.size() - pos);
-      for (auto& ptr : ptrs) ptr = x.data() + pos;
-      AudioBlock b;
-      b.channel_data = ptrs.data();
-      b.channels = channels;
-      b.frames = static_cast<std::uint32_t>(n);
-      b.first_frame = frame;
-      det->process_audio(b, sink);
-      frame += n;
-    }
-    detections += sink.events.size();
-    sink.events.clear();
-  }
+  const std::size_t detections = run_passes(state, *det, x, channels);
   const double audio_s = kSeconds * double(state.iterations()) * channels * double(templates);
   state.counters["x_realtime"] = benchmark::Counter(audio_s, benchmark::Counter::kIsRate);
   state.counters["detections_per_pass"] =
@@ -180,25 +187,7 @@ void BM_ChirpTumWorking(benchmark::State& state) {
   info.max_block_frames = 1024;
   HostContext ctx{host.log, host.clock, planner(), host.link, "chirp_bench", "A", &geometry};
   det->configure(info, p, ctx);
-  std::vector<const float*> ptrs(channels);
-  test::CollectingSink sink(1 << 20);
-  std::uint64_t frame = 0;
-  std::size_t detections = 0;
-  for (auto _ : state) {
-    for (std::size_t pos = 0; pos < x.size(); pos += 1024) {
-      const std::size_t n = std::min<std::size_t>(1024, x.size() - pos);
-      for (auto& ptr : ptrs) ptr = x.data() + pos;
-      AudioBlock b;
-      b.channel_data = ptrs.data();
-      b.channels = channels;
-      b.frames = static_cast<std::uint32_t>(n);
-      b.first_frame = frame;
-      det->process_audio(b, sink);
-      frame += n;
-    }
-    detections += sink.events.size();
-    sink.events.clear();
-  }
+  const std::size_t detections = run_passes(state, *det, x, channels);
   const double audio_s = kSeconds * double(state.iterations()) * channels * 2.0;
   state.counters["x_realtime"] = benchmark::Counter(audio_s, benchmark::Counter::kIsRate);
   state.counters["detections_per_pass"] =
