@@ -155,6 +155,10 @@ class AmilLocalizer final : public Localizer {
       if (!(d->sample_rate_hz > 0.0) || !std::isfinite(d->frame)) return;
       if (role_ == Role::Listener) {
         amil::ArrivalMessage m{device_, seq_++, d->frame, d->sample_rate_hz, d->channel, d->snr_db, d->confidence};
+        if (d->carrier_period > 0.0f && std::isfinite(d->envelope_frame)) {
+          m.envelope_frame = d->envelope_frame;
+          m.carrier_period = d->carrier_period;
+        }
         link_->publish(amil::topic_arrival(prefix_, device_), amil::encode(m));
       } else {
         add_self_beep(d->frame / d->sample_rate_hz, d->amplitude);
@@ -201,6 +205,8 @@ class AmilLocalizer final : public Localizer {
   struct ListenerState {
     std::vector<double> arrivals_s;
     std::vector<double> confidence;  ///< per arrival (same order)
+    std::vector<double> cycle_offset_s;  ///< per arrival: frame - envelope_frame (s)
+    std::vector<double> period_s;        ///< per arrival: carrier period (s), 0 = not carrier-timed
     double mic_offset_m = 0.0;       ///< from its hello
     std::uint64_t received = 0;
     std::uint64_t lost = 0;       ///< gaps in seq
@@ -277,6 +283,8 @@ class AmilLocalizer final : public Localizer {
       ++l.received;
       l.arrivals_s.push_back(d.arrival->t_s());
       l.confidence.push_back(d.arrival->confidence);
+      l.cycle_offset_s.push_back(d.arrival->cycle_offset_s());
+      l.period_s.push_back(d.arrival->carrier_period_s());
     } else if (d.done) {
       ListenerState& l = listeners_[d.done->listener];
       l.done = true;
@@ -369,14 +377,33 @@ class AmilLocalizer final : public Localizer {
       amil::ListenerArrivals arr;
       arr.arrival_s = amil::match_arrivals(times, l.arrivals_s, match_tolerance_s_, &matched);
       // Per-arrival timing error: the base error plus, for a detection unsure of its carrier cycle
-      // (confidence < 1: the multipath fit disagreed), that fraction of a cycle.
-      arr.arrival_std_s.assign(arr.arrival_s.size(), solver_.timing_std_s);
-      for (std::size_t k = 0; k < arr.arrival_s.size(); ++k) {
+      // (confidence < 1: the multipath fit disagreed), that fraction of a cycle. Then the carrier
+      // cycles are chosen over all the listener's arrivals at once (amil::resolve_cycles).
+      const std::size_t nb = arr.arrival_s.size();
+      arr.arrival_std_s.assign(nb, solver_.timing_std_s);
+      arr.cycle_offset_s.assign(nb, 0.0);
+      double period_sum = 0.0;
+      int timed = 0;
+      for (std::size_t k = 0; k < nb; ++k) {
         const auto it = std::find(l.arrivals_s.begin(), l.arrivals_s.end(), arr.arrival_s[k]);
         if (it == l.arrivals_s.end()) continue;
-        const double conf = l.confidence[static_cast<std::size_t>(it - l.arrivals_s.begin())];
-        const double slip_s = (1.0 - std::clamp(conf, 0.0, 1.0)) * carrier_period_s_;
-        arr.arrival_std_s[k] = std::hypot(solver_.timing_std_s, slip_s);
+        const auto i = static_cast<std::size_t>(it - l.arrivals_s.begin());
+        const double conf = std::clamp(l.confidence[i], 0.0, 1.0);
+        arr.arrival_std_s[k] = std::hypot(solver_.timing_std_s, (1.0 - conf) * carrier_period_s_);
+        arr.cycle_offset_s[k] = l.cycle_offset_s[i];
+        if (l.period_s[i] > 0.0) {
+          period_sum += l.period_s[i];
+          ++timed;
+        }
+      }
+      if (timed > 0 && timed == static_cast<int>(std::count_if(arr.arrival_s.begin(), arr.arrival_s.end(),
+                                                              [](double a) { return std::isfinite(a); }))) {
+        arr.carrier_period_s = period_sum / timed;
+        // the cycle choice below replaces the detector's doubt about it
+        for (std::size_t k = 0; k < nb; ++k) arr.arrival_std_s[k] = solver_.timing_std_s;
+        const int moved = amil::resolve_cycles(beeps, arr, solver_);
+        if (moved > 0)
+          log_->debug(tag + ": listener " + id + ": " + std::to_string(moved) + " arrival(s) moved by whole carrier cycles");
       }
       // The listener's position is its device's; the mic is at an unknown heading mic_offset_m away.
       arr.reference_offset_std_m = l.mic_offset_m / std::sqrt(2.0);

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <limits>
 #include <nlohmann/json.hpp>
 
@@ -62,6 +63,10 @@ std::string encode(const ArrivalMessage& m) {
   json j{{"type", "amil_arrival"}, {"listener", m.listener}, {"seq", m.seq},          {"frame", m.frame},
          {"sample_rate_hz", m.sample_rate_hz}, {"t_s", m.t_s()},      {"channel", m.channel}, {"snr_db", m.snr_db},
          {"confidence", m.confidence}};
+  if (m.carrier_period > 0.0) {
+    j["envelope_frame"] = m.envelope_frame;
+    j["carrier_period"] = m.carrier_period;
+  }
   return j.dump();
 }
 std::string encode(const DoneMessage& m) {
@@ -139,6 +144,14 @@ Decoded decode(std::string_view prefix, std::string_view topic, std::string_view
     if (j.contains("confidence")) {
       if (!get_number(j, "confidence", m.confidence, err) || m.confidence < 0.0 || m.confidence > 1.0) {
         out.error = "payload: field 'confidence': expected a number in [0, 1]";
+        return out;
+      }
+    }
+    if (j.contains("carrier_period") || j.contains("envelope_frame")) {
+      if (!get_number(j, "carrier_period", m.carrier_period, err) || !get_number(j, "envelope_frame", m.envelope_frame, err) ||
+          !(m.carrier_period > 0.0) || !(std::fabs(m.envelope_frame - m.frame) <= 64.0 * m.carrier_period)) {
+        out.error = "payload: fields 'envelope_frame' and 'carrier_period': expected both, carrier_period > 0 and "
+                    "envelope_frame within 64 periods of frame";
         return out;
       }
     }

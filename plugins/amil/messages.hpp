@@ -9,8 +9,9 @@
 //   <prefix>/hello/<listener>     {"type":"amil_hello","listener":"L1","channel":0,"mic_offset_m":0.072}
 //   <prefix>/arrivals/<listener>  {"type":"amil_arrival","listener":"L1","seq":0,"frame":123456.789,
 //                                  "sample_rate_hz":44100.0,"t_s":2.79947,"channel":0,"snr_db":31.5,
-//                                  "confidence":0.98}
-// `mic_offset_m` and `confidence` are optional (older listeners): absent = unknown (0) and 1.
+//                                  "confidence":0.98,"envelope_frame":123456.1,"carrier_period":2.205}
+// `mic_offset_m`, `confidence`, `envelope_frame` and `carrier_period` are optional (older listeners):
+// absent = unknown (0), 1, and no carrier timing (the player then cannot align carrier cycles).
 //   <prefix>/done/<listener>      {"type":"amil_done","listener":"L1","arrivals":5}
 // Times are the listener's own clock (frame counter of its audio stream), never converted: relating the
 // clocks is the solver's job (offset and skew).
@@ -32,7 +33,12 @@ struct ArrivalMessage {
   std::uint32_t channel = 0;
   double snr_db = 0.0;
   double confidence = 1.0;        ///< the detector's confidence, 0..1 (< 1: the carrier cycle is uncertain)
+  double envelope_frame = 0.0;    ///< the arrival by the envelope alone (AudioDetection::envelope_frame)
+  double carrier_period = 0.0;    ///< samples; 0 = not carrier-timed
   double t_s() const { return frame / sample_rate_hz; }
+  /// frame - envelope_frame in seconds (0 when not carrier-timed)
+  double cycle_offset_s() const { return carrier_period > 0.0 ? (frame - envelope_frame) / sample_rate_hz : 0.0; }
+  double carrier_period_s() const { return carrier_period / sample_rate_hz; }
 };
 
 struct DoneMessage {
@@ -74,5 +80,6 @@ Decoded decode(std::string_view prefix, std::string_view topic, std::string_view
 /// differs by less than tolerance_s over the beeps' span.
 std::vector<double> match_arrivals(const std::vector<double>& beeps_s, const std::vector<double>& arrivals_s,
                                    double tolerance_s, int* matched = nullptr);
+
 
 }  // namespace locus::plugins::amil

@@ -632,6 +632,95 @@ void validate(const std::vector<Beep>& beeps, const ListenerArrivals& arr, const
 
 }  // namespace
 
+int resolve_cycles(const std::vector<Beep>& beeps, ListenerArrivals& arr, const SolverConfig& cfg,
+                   const CycleOptions& opt) {
+  const double P = arr.carrier_period_s;
+  if (!(P > 0.0) || arr.cycle_offset_s.size() != arr.arrival_s.size() || arr.arrival_s.size() != beeps.size())
+    return 0;
+  const double tstd = std::isfinite(arr.timing_std_s) ? arr.timing_std_s : cfg.timing_std_s;
+  if (arr.arrival_std_s.size() != arr.arrival_s.size()) arr.arrival_std_s.assign(arr.arrival_s.size(), tstd);
+  std::vector<int> shift(arr.arrival_s.size(), 0);  // applied so far, per caller index
+  std::vector<int> doubtful;
+  for (int round = 0; round < opt.max_rounds; ++round) {
+    const Obs o = make_obs(beeps, arr, cfg, true);
+    const int n = o.n();
+    const int base = 2 * std::clamp(opt.max_shift, 1, 3) + 1;
+    if (n < 5 || std::pow(static_cast<double>(base), n - 1) > 2e5) return 0;  // 1 dof at least; bounded search
+    const std::vector<double> w(static_cast<std::size_t>(n), 1.0);
+    const Fit f = best_fit_from(o, w, cfg, nullptr);
+    if (!f.ok) return 0;
+    Eigen::VectorXd r;
+    Eigen::MatrixXd J;
+    residuals(o, Eigen::Vector4d(f.x.x(), f.x.y(), f.b, f.g), r, J);
+    Eigen::VectorXd W(n);
+    for (int k = 0; k < n; ++k) W[k] = 1.0 / (o.sigma[static_cast<std::size_t>(k)] * o.sigma[static_cast<std::size_t>(k)]);
+    // M = W - W J (Jᵀ W J)⁻¹ Jᵀ W: chi² of the linearised refit for residuals r + c P n
+    const Eigen::MatrixXd WJ = W.asDiagonal() * J;
+    const Eigen::Matrix4d A = J.transpose() * WJ;
+    const Eigen::FullPivLU<Eigen::Matrix4d> lu(A);
+    if (lu.rank() < 4) return 0;
+    const Eigen::MatrixXd M = Eigen::MatrixXd(W.asDiagonal()) - WJ * lu.solve(WJ.transpose());
+    std::vector<double> off(static_cast<std::size_t>(n));
+    for (int k = 0; k < n; ++k) off[static_cast<std::size_t>(k)] = arr.cycle_offset_s[static_cast<std::size_t>(o.index[static_cast<std::size_t>(k)])] / P;
+    const double env_var = opt.envelope_std_periods * opt.envelope_std_periods;
+    const double cP = o.c * P;
+    // cy_k is relative to the first heard arrival: shifting arrival k by m_k periods adds c P (m_k - m_0)
+    // to it, so m_0 = 0 and m_k in [-max_shift, max_shift].
+    struct Score { double chi2; std::vector<int> m; };
+    Score best{std::numeric_limits<double>::infinity(), {}}, second{std::numeric_limits<double>::infinity(), {}};
+    std::vector<int> m(static_cast<std::size_t>(n), 0);
+    Eigen::VectorXd rn(n);
+    const int combos = static_cast<int>(std::lround(std::pow(static_cast<double>(base), n - 1)));
+    const int half = base / 2;
+    for (int code = 0; code < combos; ++code) {
+      int c3 = code;
+      for (int k = 1; k < n; ++k) {
+        m[static_cast<std::size_t>(k)] = c3 % base - half;
+        c3 /= base;
+      }
+      for (int k = 0; k < n; ++k) rn[k] = r[k] + cP * m[static_cast<std::size_t>(k)];
+      double geo = rn.dot(M * rn);
+      double mean = 0.0;
+      for (int k = 0; k < n; ++k) mean += off[static_cast<std::size_t>(k)] + m[static_cast<std::size_t>(k)];
+      mean /= n;
+      double env = 0.0;
+      for (int k = 0; k < n; ++k) {
+        const double d = off[static_cast<std::size_t>(k)] + m[static_cast<std::size_t>(k)] - mean;
+        env += d * d / env_var;
+      }
+      const double chi2 = std::max(0.0, geo) + env;
+      if (chi2 < best.chi2) {
+        second = std::move(best);
+        best = {chi2, m};
+      } else if (chi2 < second.chi2) {
+        second = {chi2, m};
+      }
+    }
+    doubtful.clear();
+    if (second.chi2 - best.chi2 < opt.decisive_chi2)
+      for (int k = 0; k < n; ++k)
+        if (best.m[static_cast<std::size_t>(k)] != second.m[static_cast<std::size_t>(k)]) doubtful.push_back(o.index[static_cast<std::size_t>(k)]);
+    bool changed = false;
+    for (int k = 1; k < n; ++k) {
+      const int mk = best.m[static_cast<std::size_t>(k)];
+      if (mk == 0) continue;
+      const auto i = static_cast<std::size_t>(o.index[static_cast<std::size_t>(k)]);
+      arr.arrival_s[i] += mk * P;
+      arr.cycle_offset_s[i] += mk * P;
+      shift[i] += mk;
+      changed = true;
+    }
+    if (!changed) break;
+  }
+  for (int i : doubtful) {
+    const auto iu = static_cast<std::size_t>(i);
+    arr.arrival_std_s[iu] = std::max(arr.arrival_std_s[iu], std::hypot(tstd, 0.5 * P));
+  }
+  int moved = 0;
+  for (int s : shift) moved += s != 0 ? 1 : 0;
+  return moved;
+}
+
 const char* to_string(Method m) noexcept {
   switch (m) {
     case Method::Paper: return "paper";

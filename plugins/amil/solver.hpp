@@ -86,6 +86,11 @@ struct ListenerArrivals {
   /// Per-axis 1-sigma offset between the point the arrivals measure (the listening mic) and the point
   /// reported (the listener device); added to the position covariance by calibrate_session().
   double reference_offset_std_m = 0.0;
+  /// Carrier timing (optional, resolve_cycles()): the carrier period (s; 0 = arrivals not carrier-timed)
+  /// and per arrival its frame − envelope_frame (s), the offset of the phase zero chosen from the
+  /// envelope maximum (AudioDetection::envelope_frame).
+  double carrier_period_s = 0.0;
+  std::vector<double> cycle_offset_s;
 };
 
 struct SolverConfig {
@@ -178,6 +183,30 @@ NetworkSolution solve_network(const std::vector<Beep>& beeps, const std::vector<
 /// `inconsistent` (its confidence divided by 10): an arrival that is not the direct path, a cycle slip.
 /// Returns the session factor (1 when nothing could be pooled).
 double calibrate_session(std::vector<Solution>& listeners, const SolverConfig& cfg);
+
+/// [main] Carrier-cycle ambiguity of one listener's arrivals (needs ListenerArrivals::carrier_period_s
+/// and cycle_offset_s, >= 5 arrivals heard). A carrier-timed arrival is exact within its carrier
+/// cycle but the cycle comes from the envelope maximum, which multipath within a few envelope widths
+/// and transducer responses move by a sample or two from beep to beep: a one-cycle slip (~2.2 samples,
+/// 17 mm at 20 kHz) wrecks the distance and shows as a confident wrong answer. Integer least squares:
+/// every combination of whole-cycle shifts n_k in [-max_shift, max_shift] (the first heard arrival fixed: a common
+/// shift is the clock offset's) is scored by
+///     chi²_geometry(n)  the residual of the measurement model linearised at the best fit
+///                       (position, skew, offset free), with the arrivals' sigmas, plus
+///     chi²_envelope(n)  sum_k (offset_k + n_k·P − mean)² / envelope_std²: the envelope-to-phase
+///                       offset is the channel's, the same for every beep up to its jitter;
+/// the best one is applied (arrival_s moved by n_k·P) and the fit re-linearised until n is stable.
+/// When a combination with other shifts scores within `decisive_chi2` of the best, the arrivals where
+/// they differ keep a doubtful cycle: their arrival_std_s is raised to at least half a period (they
+/// then do not count as reliable). Returns the number of arrivals moved (0 when not applicable).
+struct CycleOptions {
+  double envelope_std_periods = 0.35;  ///< beep-to-beep jitter of the envelope-to-phase offset (periods)
+  double decisive_chi2 = 4.0;          ///< a runner-up closer than this leaves the differing cycles doubtful
+  int max_shift = 2;                   ///< n_k in [-max_shift, max_shift] (relative to the first heard arrival)
+  int max_rounds = 3;
+};
+int resolve_cycles(const std::vector<Beep>& beeps, ListenerArrivals& arrivals, const SolverConfig& cfg,
+                   const CycleOptions& opt = {});
 
 /// The closed form of one 3-beep subset (Sec. II-E, Eq. 1): listener x with |x − p_j| − |x − p_i| =
 /// dd_j and |x − p_k| − |x − p_i| = dd_k. Returns 0, 1 or 2 points (any frame). Exposed for tests.

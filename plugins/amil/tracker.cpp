@@ -69,9 +69,13 @@ void GestureTracker::reset_state() {
   bin_start_ = std::numeric_limits<double>::quiet_NaN();
   bin_.clear();
   prev_bin_.clear();
+  rest_tail_.clear();
   rest_start_ = std::numeric_limits<double>::quiet_NaN();
   rest_a_sum_.setZero();
   rest_a_sq_sum_.setZero();
+  rest_d2_sum_.setZero();
+  rest_d2_n_ = 0;
+  rest_prev_n_ = 0;
   rest_w_sum_.setZero();
   rest_n_ = 0;
   have_rest_ = false;
@@ -133,6 +137,7 @@ void GestureTracker::end_bin() {
       // Movement: starts (conservatively) at the previous bin, which is not part of the rest.
       const double start = prev_bin_.empty() ? bin_.front().t : prev_bin_.front().t;
       move_.clear();
+      for (const Sample& s : rest_tail_) move_.push_back(s);  // the rest before: zero-mean velocity
       for (const Sample& s : prev_bin_) move_.push_back(s);
       for (const Sample& s : bin_) move_.push_back(s);
       active_start_ = bin_start_;
@@ -141,12 +146,27 @@ void GestureTracker::end_bin() {
     } else {
       // The previous bin is confirmed rest (one bin of lag keeps a movement's onset out of it).
       for (const Sample& s : prev_bin_) {
+        rest_tail_.push_back(s);
         rest_a_sum_ += s.a;
         rest_a_sq_sum_ += s.a.cwiseProduct(s.a);
+        if (rest_prev_n_ >= 2) {
+          const Eigen::Vector3d d2 = s.a - 2.0 * rest_prev_[0] + rest_prev_[1];
+          rest_d2_sum_ += d2.cwiseProduct(d2);
+          ++rest_d2_n_;
+        }
+        rest_prev_[1] = rest_prev_[0];
+        rest_prev_[0] = s.a;
+        ++rest_prev_n_;
         rest_w_sum_ += s.w;
         ++rest_n_;
       }
       if (rest_n_ > 0) rest_a_ = rest_a_sum_ / static_cast<double>(rest_n_);
+      if (!rest_tail_.empty()) {
+        const double keep_from = rest_tail_.back().t - cfg_.rest_window_s;
+        std::size_t drop = 0;
+        while (drop < rest_tail_.size() && rest_tail_[drop].t < keep_from) ++drop;
+        rest_tail_.erase(rest_tail_.begin(), rest_tail_.begin() + static_cast<std::ptrdiff_t>(drop));
+      }
       if (session_open_ && bin_end - rest_start_ >= cfg_.session_gap_s) {
         Session& s = sessions_.back();
         s.closed = true;
@@ -192,7 +212,10 @@ void GestureTracker::start_movement(double t_start) {
     const double n = static_cast<double>(rest_n_);
     const Eigen::Vector3d mean = rest_a_sum_ / n;
     const Eigen::Vector3d var = (rest_a_sq_sum_ / n - mean.cwiseProduct(mean)).cwiseMax(0.0) * (n / (n - 1.0));
-    accel_noise_mps2_ = std::sqrt(var.mean());
+    // The white part only: second differences (var = 6 sigma² for white noise) all but remove a hand's
+    // tremor (8-12 Hz), whose double integral is tens of µm, not the noise bridge's millimetres.
+    if (rest_d2_n_ >= 5) accel_noise_mps2_ = std::sqrt(std::min(var.mean(), (rest_d2_sum_ / static_cast<double>(rest_d2_n_)).mean() / 6.0));
+    else accel_noise_mps2_ = std::sqrt(var.mean());
   }
   if (!session_open_) {
     if (rest_n_ == 0 || rest_len + 1e-9 < cfg_.min_rest_s) return;  // no rest to learn gravity from: untracked
@@ -247,25 +270,63 @@ void GestureTracker::end_movement(double t_end) {
     }
     vel[0].setZero();
     for (std::size_t i = 1; i < n; ++i) vel[i] = vel[i - 1] + 0.5 * (acc[i] + acc[i - 1]) * (move_[i].t - move_[i - 1].t);
-    // Velocity compensation (paper Sec. II-C): zero at both ends of the movement.
+    // Velocity compensation (paper Sec. II-C; "Deviation" in tracker.hpp): the linear velocity error
+    // that makes the velocity zero-mean over the rests on both sides, else zero at both ends.
     const double t0 = move_.front().t, span = move_.back().t - t0;
     const Eigen::Vector3d v_end = vel[n - 1];
     m.end_speed_mps = v_end.norm();
-    for (std::size_t i = 0; i < n; ++i) vel[i] -= span > 0.0 ? v_end * ((move_[i].t - t0) / span) : v_end;
+    double s0 = 0, s1 = 0, s2 = 0;
+    Eigen::Vector3d sv = Eigen::Vector3d::Zero(), stv = Eigen::Vector3d::Zero();
+    std::size_t lead = 0, trail = 0;
+    auto is_lead = [&](std::size_t i) { return move_[i].t < move_start_; };
+    auto is_trail = [&](std::size_t i) { return move_[i].t >= m.t_active_end_s; };
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!is_lead(i) && !is_trail(i)) continue;
+      (is_lead(i) ? lead : trail) += 1;
+      const double t = move_[i].t - t0;
+      s0 += 1, s1 += t, s2 += t * t;
+      sv += vel[i];
+      stv += t * vel[i];
+    }
+    const double det = s0 * s2 - s1 * s1;
+    const bool rests = lead >= 3 && trail >= 3 && det > 1e-12;
+    const Eigen::Vector3d alpha = rests ? Eigen::Vector3d((s2 * sv - s1 * stv) / det) : Eigen::Vector3d::Zero();
+    const Eigen::Vector3d beta =
+        rests ? Eigen::Vector3d((s0 * stv - s1 * sv) / det) : (span > 0.0 ? Eigen::Vector3d(v_end / span) : Eigen::Vector3d::Zero());
+    for (std::size_t i = 0; i < n; ++i) vel[i] -= alpha + beta * (move_[i].t - t0);
+    // what the de-drift removed over the movement itself (the uncertainty's drift term)
+    const double moving_s = std::max(0.0, m.t_end_s - move_start_);
+    if (rests) m.end_speed_mps = (beta * moving_s).norm();
+    if (!rests && !(span > 0.0)) vel[n - 1].setZero();
+    std::vector<Eigen::Vector3d> pos(n);
+    pos[0].setZero();
+    for (std::size_t i = 1; i < n; ++i) pos[i] = pos[i - 1] + 0.5 * (vel[i] + vel[i - 1]) * (move_[i].t - move_[i - 1].t);
+    // The previous pause is where the rest before was on average; this pause where the rest after is.
+    Eigen::Vector3d lead_mean = Eigen::Vector3d::Zero(), trail_mean = Eigen::Vector3d::Zero();
+    if (rests) {
+      for (std::size_t i = 0; i < n; ++i) {
+        if (is_lead(i)) lead_mean += pos[i];
+        if (is_trail(i)) trail_mean += pos[i];
+      }
+      lead_mean /= static_cast<double>(lead);
+      trail_mean /= static_cast<double>(trail);
+    } else {
+      trail_mean = pos[n - 1];
+    }
     const Eigen::Vector3d start_body = s.pauses.back().body_m;
-    Eigen::Vector3d p = Eigen::Vector3d::Zero();
     m.t_s.reserve(n);
     m.body_m.reserve(n);
     for (std::size_t i = 0; i < n; ++i) {
-      if (i > 0) p += 0.5 * (vel[i] + vel[i - 1]) * (move_[i].t - move_[i - 1].t);
+      if (move_[i].t < move_start_) continue;  // the rest before belongs to the previous pause
       m.t_s.push_back(move_[i].t);
-      m.body_m.push_back(start_body + p);
+      m.body_m.push_back(start_body + pos[i] - lead_mean);
     }
+    const Eigen::Vector3d p = trail_mean - lead_mean;
     m.displacement_m = p;
     // Uncertainty (tracker.hpp): noise bridge + de-drift residual accumulate; scale error ~ displacement.
     const double dt_mean = n > 1 ? span / static_cast<double>(n - 1) : 0.0;
-    const double noise_sd = accel_noise_mps2_ * std::sqrt(dt_mean * span * span * span / 12.0);
-    const double drift_sd = cfg_.drift_shape_factor * m.end_speed_mps * span;
+    const double noise_sd = accel_noise_mps2_ * std::sqrt(dt_mean * moving_s * moving_s * moving_s / 12.0);
+    const double drift_sd = cfg_.drift_shape_factor * m.end_speed_mps * moving_s;
     m.accumulated_var_m2 = noise_sd * noise_sd + drift_sd * drift_sd;
     session_var_m2_ += m.accumulated_var_m2;
     q_ = q;
@@ -280,10 +341,14 @@ void GestureTracker::end_movement(double t_end) {
     s.pauses.push_back(next);
   }
   move_.clear();
+  rest_tail_.clear();
   // A new rest starts after the movement.
   rest_start_ = t_end;
   rest_a_sum_.setZero();
   rest_a_sq_sum_.setZero();
+  rest_d2_sum_.setZero();
+  rest_d2_n_ = 0;
+  rest_prev_n_ = 0;
   rest_w_sum_.setZero();
   rest_n_ = 0;
   prev_bin_.clear();  // its samples belong to the movement

@@ -28,6 +28,14 @@
 //     (trapezoid) to velocity; at the end of the movement the velocity must be zero, so, as Sec. II-C,
 //     v'(t) = v(t) − v(t_end)·(t − t_start)/(t_end − t_start) (any constant acceleration error goes);
 //     v' is integrated to the displacement. During a pause the position holds.
+//     Deviation: a hand holding a phone on a table trembles (8-12 Hz, tens of µm, a few mm/s), so the
+//     velocity at the instant a movement is taken to start or end is not zero, only its mean over a
+//     rest is; pinning instants leaves the boundary velocities' ~v·T per movement (7 mm over one
+//     triangle in the simulator, 0.4 mm without the tremor). The integration therefore spans up to
+//     `rest_window_s` of the rest before the movement and the quiet bins after it, the linear
+//     velocity error v(t) = α + β t is fitted so that the velocity has zero mean over both rests
+//     (least squares over their samples), and a pause's position is the mean position over its
+//     samples; with fewer than 3 rest samples on a side, the two-instant rule above applies.
 //
 // Uncertainty: every pause carries a 1-sigma per-axis error of its position, from three terms that the
 // de-drift does not remove: (a) white accelerometer noise, double-integrated over each movement and
@@ -67,6 +75,7 @@ struct TrackerConfig {
   double accel_scale_error = 0.003;     ///< relative scale + cross-axis error of the accelerometer (1 sigma)
   double drift_shape_factor = 0.05;     ///< residual of the linear de-drift, as a fraction of v_end·T (1 sigma)
   double position_floor_m = 0.0005;     ///< error of a pause position that no term models (hand wiggle), per axis
+  double rest_window_s = 0.3;           ///< rest integrated on each side of a movement (zero-mean velocity, below)
 };
 
 /// One rest of the player inside a session (the first one ends at the session start T).
@@ -158,6 +167,7 @@ class GestureTracker {
   // current bin
   double bin_start_ = std::numeric_limits<double>::quiet_NaN();
   std::vector<Sample> bin_, prev_bin_;
+  std::vector<Sample> rest_tail_;  ///< the latest confirmed rest samples (at most rest_window_s)
   // rest statistics (since the last movement ended, or since the start)
   double rest_start_ = std::numeric_limits<double>::quiet_NaN();
   Eigen::Vector3d rest_a_sum_ = Eigen::Vector3d::Zero(), rest_w_sum_ = Eigen::Vector3d::Zero();
@@ -165,6 +175,9 @@ class GestureTracker {
   Eigen::Vector3d rest_a_ = Eigen::Vector3d::Zero();  ///< rest reference (body frame)
   Eigen::Vector3d gyro_bias_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d rest_a_sq_sum_ = Eigen::Vector3d::Zero();  ///< per-axis sum of squares at rest (noise level)
+  Eigen::Vector3d rest_d2_sum_ = Eigen::Vector3d::Zero();    ///< per-axis sum of squared second differences at rest
+  std::uint64_t rest_d2_n_ = 0, rest_prev_n_ = 0;
+  Eigen::Vector3d rest_prev_[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};  ///< the last two rest samples
   double accel_noise_mps2_ = 0.0;  ///< white accelerometer noise per sample (per axis), from the last rest
   double session_var_m2_ = 0.0;    ///< accumulated noise + drift variance of the open session
   bool have_rest_ = false;

@@ -3,6 +3,7 @@
 #include "chirp.hpp"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <complex>
@@ -648,16 +649,31 @@ class ChirpDetector final : public Detector {
     const double am = std::sqrt(k > 0 ? pow_at(k - 1) : 0.0), a0 = std::sqrt(pk), ap = std::sqrt(pow_at(k + 1));
     const dsp::PeakFit fit = refine_ == Refine::Parabolic ? dsp::parabolic_peak(am, a0, ap) : dsp::gaussian_peak(am, a0, ap);
     double lag = static_cast<double>(k) + fit.offset;
+    double envelope_lag = lag;
     double margin = 1.0;  // how firmly the carrier cycle was chosen (multipath fit), scales confidence
     if (refine_ == Refine::Phase) {
-      const double coarse = fit.offset;
-      const std::int64_t step = coarse > 0.5 ? 1 : coarse < -0.5 ? -1 : 0;
-      const std::uint64_t k1 = static_cast<std::uint64_t>(static_cast<std::int64_t>(k) + step);
-      const std::size_t r = r0 + (k1 & ring_mask_);
-      const double d = dsp::phase_refine_near(ring_re_[r], ring_im_[r], corr_.centroid_omega(t),
-                                              coarse - static_cast<double>(step));
-      // The phase picks the fraction within the carrier cycle the envelope chose.
-      lag = static_cast<double>(k1) + d;
+      // The envelope maximum of the band-limited baseband (dsp::analytic_peak) picks the carrier
+      // cycle, the phase the fraction within it; without the 7 lags around k, a 3-point fit does.
+      const std::uint64_t oldest = std::min(tr.valid_from, tr.t0 > 0 ? tr.t0 - 1 : 0);
+      const bool have7 = k >= oldest + 3 && k + 3 < tr.next_lag && k + ring_size_ >= tr.next_lag + 3;
+      if (have7) {
+        std::array<std::complex<float>, 7> z7;
+        for (std::size_t i = 0; i < 7; ++i) {
+          const std::size_t ri = r0 + ((k - 3 + i) & ring_mask_);
+          z7[i] = {ring_re_[ri], ring_im_[ri]};
+        }
+        const dsp::AnalyticPeak ap = dsp::analytic_peak(z7.data(), z7.size(), 3, corr_.centroid_omega(t));
+        lag = static_cast<double>(k) + ap.delay;
+        envelope_lag = static_cast<double>(k) + ap.envelope;
+      } else {
+        const double coarse = fit.offset;
+        const std::int64_t step = coarse > 0.5 ? 1 : coarse < -0.5 ? -1 : 0;
+        const std::uint64_t k1 = static_cast<std::uint64_t>(static_cast<std::int64_t>(k) + step);
+        const std::size_t r = r0 + (k1 & ring_mask_);
+        const double d = dsp::phase_refine_near(ring_re_[r], ring_im_[r], corr_.centroid_omega(t),
+                                                coarse - static_cast<double>(step));
+        lag = static_cast<double>(k1) + d;
+      }
       // Unless the window around the peak is not a single path: then the cycle comes from the
       // direct path of a multipath fit (dsp::MultipathFit). Lags before the window the event opened in
       // (valid_from) may be stale.
@@ -691,6 +707,8 @@ class ChirpDetector final : public Detector {
     d.channel = static_cast<std::uint16_t>(c);
     d.template_index = static_cast<std::uint16_t>(t);
     d.frame = static_cast<double>(origin_[c]) + lag;
+    d.envelope_frame = static_cast<double>(origin_[c]) + envelope_lag;
+    d.carrier_period = refine_ == Refine::Phase ? static_cast<float>(2.0 * std::numbers::pi / corr_.centroid_omega(t)) : 0.0f;
     d.sample_rate_hz = rate_;
     const double snr_db = std::min(300.0, 10.0 * std::log10(std::max(fit.value * fit.value, pk) / tr.noise_at_open));
     d.snr_db = static_cast<float>(snr_db);

@@ -417,20 +417,38 @@ class DeviceRenderer {
     const double frac = k_dir - std::floor(k_dir);
     for (std::size_t i = 0; i < sig_len; ++i) dry[i] = ev.value((static_cast<double>(i) - frac) / fs_);
     const auto k0 = static_cast<std::int64_t>(std::floor(k_dir));
-    std::vector<double> taps(static_cast<std::size_t>(room.tail_taps));
+    // Reflection times grow denser as t² (a room's echo density 4π c³ t² / V); one tap per reflection
+    // up to tail_taps, each reflection's amplitude ~ e^(−t/τ)/(c t) (spherical spreading), and no tap
+    // louder than one path of its length can be: the image sources cover max_order reflections, so a
+    // tail path has at least max_order + 1 (β_max^(max_order+1) e^(−κ c t) / (c t)).
+    const Eigen::Vector3d& L = room.size_m;
+    const double t_a = t_dir - e.t_start_true_s() + tp.start_s, t_b = t_dir - e.t_start_true_s() + tp.end_s;
+    const double physical = 4.0 * M_PI * c_ * c_ * c_ * (t_b * t_b * t_b - t_a * t_a * t_a) / (3.0 * L.prod());
+    const auto n_taps = static_cast<std::size_t>(std::clamp(physical, 1.0, static_cast<double>(room.tail_taps)));
+    const double beta_max = *std::max_element(room.reflection.begin(), room.reflection.end());
+    const double beta_tail = std::pow(beta_max, std::max(1, room.max_order) + 1);
+    const double kappa = sim_.acoustics.air_absorption && centre_frequency_hz(spec) > 0.0
+                             ? air_absorption_db_per_m(centre_frequency_hz(spec), sim_.acoustics.temperature_c,
+                                                       sim_.acoustics.humidity_pct) * std::log(10.0) / 20.0
+                             : 0.0;
+    std::vector<double> taps(n_taps), bound(n_taps);
     std::vector<std::int64_t> delays(taps.size());
     for (std::size_t ch = 0; ch < channels_; ++ch) {
       double e2 = 0.0;
       for (std::size_t j = 0; j < taps.size(); ++j) {
-        const double d = rng.uniform(tp.start_s, tp.end_s);
+        const double u = rng.uniform();
+        const double t = std::cbrt(t_a * t_a * t_a + u * (t_b * t_b * t_b - t_a * t_a * t_a));  // since emission
+        const double d = t - (t_dir - e.t_start_true_s());                                      // after the direct path
         delays[j] = static_cast<std::int64_t>(std::llround(d * fs_));
-        taps[j] = rng.normal() * std::exp(-(d - tp.start_s) / tp.tau_s);
+        taps[j] = rng.normal() * std::exp(-(d - tp.start_s) / tp.tau_s) / (c_ * t);
+        bound[j] = beta_tail * std::exp(-kappa * c_ * t) / (c_ * t);
         e2 += taps[j] * taps[j];
       }
-      const double scale = e2 > 0.0 ? g_1m * std::sqrt(tp.energy / e2) : 0.0;
+      const double scale = e2 > 0.0 ? std::sqrt(tp.energy / e2) : 0.0;
+      for (std::size_t j = 0; j < taps.size(); ++j) taps[j] = g_1m * std::clamp(scale * taps[j], -bound[j], bound[j]);
       auto& out = buf[ch];
       for (std::size_t j = 0; j < taps.size(); ++j) {
-        const double a = scale * taps[j];
+        const double a = taps[j];
         const std::int64_t at = k0 + delays[j];
         for (std::size_t i = 0; i < sig_len; ++i) {
           const std::int64_t k = at + static_cast<std::int64_t>(i);
@@ -966,3 +984,4 @@ WriteReport SceneSimulator::write(const std::string& out_dir) const {
 }
 
 }  // namespace locus::sim
+

@@ -35,6 +35,14 @@ struct AudioDetection {
   float snr_db = 0.0f;          ///< peak-to-noise ratio of the detection statistic
   float confidence = 0.0f;      ///< 0..1
   float amplitude = 0.0f;       ///< linear peak amplitude of the detection statistic
+  /// Detectors that time a passband signal by its carrier phase (chirp, refine: phase): the arrival by
+  /// the correlation envelope alone (same frame counter) and the carrier period (samples). `frame` is
+  /// a carrier-phase zero near envelope_frame; whole periods apart are equally plausible to the phase.
+  /// A consumer holding several arrivals through one channel (same source, same microphone) can choose
+  /// their cycles consistently: frame - envelope_frame is the same for all of them up to whole periods.
+  /// carrier_period 0: not carrier-timed (envelope_frame is then frame or 0).
+  double envelope_frame = 0.0;
+  float carrier_period = 0.0f;
 };
 
 /// One IMU reading in the device body frame (Android convention), gravity included.

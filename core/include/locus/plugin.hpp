@@ -26,8 +26,10 @@
 /// Bump on any change of layout or virtual table in the public headers.
 // 2: HostContext::geometry (DeviceGeometry); 3: HostContext::emitter, DeviceGeometry::scene_emits_json;
 // 4: signals typed (SignalSpec, locus/signal.hpp): DeviceGeometry::emits / scene_emits spans replace
-//    the JSON texts, Emitter::schedule takes a SignalSpec.
-#define LOCUS_PLUGIN_ABI_VERSION 4u
+//    the JSON texts, Emitter::schedule takes a SignalSpec; Estimate gains direction_std_rad,
+//    distance_std_m and flags;
+// 5: AudioDetection::envelope_frame and carrier_period (consistent carrier cycles across arrivals).
+#define LOCUS_PLUGIN_ABI_VERSION 5u
 #define LOCUS_PLUGIN_ENUM_SYMBOL "locus_plugin_enum"
 
 extern "C" {

@@ -67,6 +67,55 @@ double phase_refine(double re, double im, double omega_c) noexcept {
   return -std::atan2(im, re) / omega_c;
 }
 
+AnalyticPeak analytic_peak(const std::complex<float>* z, std::size_t n, std::size_t k0, double omega_c) noexcept {
+  AnalyticPeak out;
+  if (k0 >= n) return out;
+  if (k0 < 3 || k0 + 3 >= n || !(omega_c > 0.0)) {
+    const double am = k0 > 0 ? std::abs(z[k0 - 1]) : 0.0, a0 = std::abs(z[k0]), ap = k0 + 1 < n ? std::abs(z[k0 + 1]) : 0.0;
+    const PeakFit f = gaussian_peak(am, a0, ap);
+    out.envelope = f.offset;
+    out.magnitude = f.value;
+    out.delay = phase_refine_near(z[k0].real(), z[k0].imag(), omega_c, f.offset);
+    return out;
+  }
+  constexpr int kHalf = 3;
+  std::array<std::complex<double>, 2 * kHalf + 1> bb{};
+  for (int i = -kHalf; i <= kHalf; ++i) {
+    const std::complex<double> v(z[static_cast<std::size_t>(static_cast<std::ptrdiff_t>(k0) + i)]);
+    bb[static_cast<std::size_t>(i + kHalf)] = v * std::polar(1.0, -omega_c * i);
+  }
+  // Lagrange basis on the nodes -3..3
+  auto at = [&](double t) {
+    std::complex<double> sum = 0.0;
+    for (int i = -kHalf; i <= kHalf; ++i) {
+      double w = 1.0;
+      for (int j = -kHalf; j <= kHalf; ++j)
+        if (j != i) w *= (t - j) / static_cast<double>(i - j);
+      sum += w * bb[static_cast<std::size_t>(i + kHalf)];
+    }
+    return sum;
+  };
+  double a = -1.0, b = 1.0;
+  const double g = (std::sqrt(5.0) - 1.0) / 2.0;
+  double x1 = b - g * (b - a), x2 = a + g * (b - a);
+  double f1 = std::norm(at(x1)), f2 = std::norm(at(x2));
+  for (int it = 0; it < 40; ++it) {
+    if (f1 > f2) {
+      b = x2, x2 = x1, f2 = f1, x1 = b - g * (b - a), f1 = std::norm(at(x1));
+    } else {
+      a = x1, x1 = x2, f1 = f2, x2 = a + g * (b - a), f2 = std::norm(at(x2));
+    }
+  }
+  const double t = 0.5 * (a + b);
+  const std::complex<double> v = at(t);
+  out.envelope = t;
+  out.magnitude = std::abs(v);
+  // the carrier phase at t (baseband times the carrier) is omega_c (t - delay)
+  const double phase = std::arg(v * std::polar(1.0, omega_c * t));
+  out.delay = t - phase / omega_c;
+  return out;
+}
+
 double phase_refine_near(double re, double im, double omega_c, double coarse) noexcept {
   if (!(omega_c > 0.0)) return coarse;
   const double d = phase_refine(re, im, omega_c);

@@ -38,6 +38,10 @@ struct ToJson {
     j["snr_db"] = num(e.snr_db);
     j["confidence"] = num(e.confidence);
     j["amplitude"] = num(e.amplitude);
+    if (e.carrier_period > 0.0f) {
+      j["envelope_frame"] = e.envelope_frame;
+      j["carrier_period"] = num(e.carrier_period);
+    }
   }
   void operator()(const ImuSample& e) const {
     j["device"] = e.device.str();

@@ -23,6 +23,15 @@ TEST(AmilMessages, RoundTrip) {
   EXPECT_EQ(da.arrival->channel, 1u);
   EXPECT_DOUBLE_EQ(da.arrival->snr_db, 31.25);
   EXPECT_DOUBLE_EQ(da.arrival->t_s(), a.frame / 44100.0);
+  EXPECT_EQ(da.arrival->carrier_period, 0.0);  // not carrier-timed: the fields are absent
+  ArrivalMessage c = a;
+  c.envelope_frame = a.frame - 1.25;
+  c.carrier_period = 2.205;
+  const Decoded dc = decode("amil", topic_arrival("amil", "L7"), encode(c));
+  ASSERT_TRUE(dc.arrival) << dc.error;
+  EXPECT_DOUBLE_EQ(dc.arrival->envelope_frame, c.envelope_frame);
+  EXPECT_DOUBLE_EQ(dc.arrival->carrier_period, 2.205);
+  EXPECT_NEAR(dc.arrival->cycle_offset_s(), 1.25 / 44100.0, 1e-12);
 
   const Decoded dd = decode("grp/amil", topic_done("grp/amil", "L-2"), encode(DoneMessage{"L-2", 13}));
   ASSERT_TRUE(dd.done) << dd.error;
@@ -52,6 +61,12 @@ TEST(AmilMessages, MalformedMessagesAreNamed) {
             std::string::npos);
   EXPECT_NE(err("amil/arrivals/L1", R"({"type":"amil_arrival","listener":"L1","seq":0,"frame":1,"sample_rate_hz":0,"channel":0,"snr_db":1})")
                 .find("sample_rate_hz > 0"),
+            std::string::npos);
+  EXPECT_NE(err("amil/arrivals/L1", R"({"type":"amil_arrival","listener":"L1","seq":0,"frame":1,"sample_rate_hz":44100,"channel":0,"snr_db":1,"carrier_period":2.2})")
+                .find("'envelope_frame' and 'carrier_period': expected both"),
+            std::string::npos);
+  EXPECT_NE(err("amil/arrivals/L1", R"({"type":"amil_arrival","listener":"L1","seq":0,"frame":1000,"sample_rate_hz":44100,"channel":0,"snr_db":1,"carrier_period":2.2,"envelope_frame":1})")
+                .find("within 64 periods"),
             std::string::npos);
   EXPECT_NE(err("amil/done/L1", R"({"type":"amil_done","listener":"L1"})").find("field 'arrivals'"), std::string::npos);
   EXPECT_NE(err("amil/hello/L1", R"({"type":"amil_hello"})").find("field 'listener'"), std::string::npos);

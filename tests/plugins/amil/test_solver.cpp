@@ -386,3 +386,105 @@ TEST(AmilNetwork, TooFewListenersKeepTheirOwnSolutions) {
   // Method::Network through solve() is the robust per-listener solution
   EXPECT_LT((amil::solve(beeps, arr[0], cfg).position_m - Eigen::Vector2d(0.0, 1.22)).norm(), 1e-3);
 }
+
+namespace {
+
+/// One gesture of the ~30 cm equilateral triangle the foreign scenes draw, a beep per pause.
+std::vector<amil::Beep> equilateral(double side = 0.30, double position_std_m = 0.002) {
+  const double h = side * std::sqrt(3.0) / 2.0;
+  const std::vector<Eigen::Vector2d> p{{0, 0}, {-side / 2, 0}, {0, h}, {side / 2, 0}, {0, 0}};
+  std::vector<amil::Beep> beeps;
+  for (std::size_t k = 0; k < p.size(); ++k) {
+    amil::Beep b;
+    b.position_m = p[k];
+    b.player_time_s = 3.0 + 1.1 * static_cast<double>(k);
+    b.position_std_m = position_std_m;
+    beeps.push_back(b);
+  }
+  return beeps;
+}
+
+struct CycleTrial {
+  int slipped = 0;  // arrivals whose detector picked another cycle than the truth's
+  amil::ListenerArrivals arr;
+  std::vector<double> truth;
+};
+
+/// Arrivals of a listener at x as the chirp detector reports them: the envelope maximum is off by the
+/// channel's skew (`channel` periods, the same for every beep) plus a per-beep jitter (multipath that
+/// moves with the player), and the phase zero nearest it is reported, so a beep whose envelope error
+/// passes half a period is slipped by a whole one. Beep positions carry 2 mm errors, timing 0.05 samples.
+CycleTrial cycle_trial(std::mt19937& rng, const Eigen::Vector2d& x, double jitter_periods) {
+  constexpr double kFs = 44100.0, kPeriod = 2.205 / kFs;
+  std::normal_distribution<double> n01(0.0, 1.0);
+  std::vector<amil::Beep> moved = equilateral();
+  for (auto& b : moved) b.position_m += 0.002 * Eigen::Vector2d(n01(rng), n01(rng));
+  CycleTrial t;
+  t.truth = amil::exact_arrivals(moved, x, 20e-6, 1.234, kC);
+  const double channel = std::uniform_real_distribution<double>(-0.5, 0.5)(rng);
+  t.arr.carrier_period_s = kPeriod;
+  t.arr.arrival_s.resize(t.truth.size());
+  t.arr.cycle_offset_s.resize(t.truth.size());
+  for (std::size_t k = 0; k < t.truth.size(); ++k) {
+    const double env_err = (channel + jitter_periods * n01(rng)) * kPeriod;
+    const double picked = kPeriod * std::round(env_err / kPeriod);  // the phase zero nearest the envelope
+    t.slipped += picked != 0.0;
+    t.arr.arrival_s[k] = t.truth[k] + picked + 0.05 / kFs * n01(rng);
+    t.arr.cycle_offset_s[k] = picked - env_err;
+  }
+  return t;
+}
+
+/// Every arrival within a quarter period of the truth, up to a common whole-period shift (the clock
+/// offset absorbs it).
+bool cycles_right(const CycleTrial& t) {
+  const double p = t.arr.carrier_period_s;
+  const double shift = p * std::round((t.arr.arrival_s[0] - t.truth[0]) / p);
+  for (std::size_t k = 0; k < t.truth.size(); ++k)
+    if (std::fabs(t.arr.arrival_s[k] - t.truth[k] - shift) > 0.25 * p) return false;
+  return true;
+}
+
+}  // namespace
+
+TEST(AmilCycles, SlipsFromAJitteryEnvelopeAreUndone) {
+  std::mt19937 rng(20261125);
+  amil::SolverConfig cfg = config(amil::Method::Robust);
+  cfg.timing_std_s = 0.05 / 44100.0;
+  cfg.position_std_m = 0.002;
+  int with_slips = 0, right_before = 0, right_after = 0, wrong_unflagged = 0;
+  for (int i = 0; i < 200; ++i) {
+    const double dir = std::uniform_real_distribution<double>(0.2, std::numbers::pi - 0.2)(rng);
+    const double r = std::uniform_real_distribution<double>(0.8, 3.0)(rng);
+    CycleTrial t = cycle_trial(rng, Eigen::Vector2d(r * std::cos(dir), r * std::sin(dir)), 0.3);
+    right_before += cycles_right(t);
+    with_slips += t.slipped > 0;
+    amil::resolve_cycles(equilateral(), t.arr, cfg);
+    const bool right = cycles_right(t);
+    right_after += right;
+    // a wrong choice must be marked: a doubtful arrival's std is raised to half a period
+    bool flagged = false;
+    for (double sd : t.arr.arrival_std_s) flagged = flagged || sd > 0.25 * t.arr.carrier_period_s;
+    wrong_unflagged += !right && !flagged;
+  }
+  RecordProperty("right_before", right_before);
+  RecordProperty("right_after", right_after);
+  EXPECT_GT(with_slips, 60) << "the trial must slip often enough to test anything";
+  EXPECT_GE(right_after, 2 * right_before) << "of 200 (before: " << right_before << ")";
+  EXPECT_LE(wrong_unflagged, 10) << "of 200 wrong without a doubtful arrival (right: " << right_after << ")";
+}
+
+TEST(AmilCycles, NotCarrierTimedIsLeftAlone) {
+  amil::SolverConfig cfg = config(amil::Method::Robust);
+  std::vector<amil::Beep> beeps = equilateral();
+  amil::ListenerArrivals a;
+  a.arrival_s = amil::exact_arrivals(beeps, Eigen::Vector2d(0.5, 1.5), 0.0, 1.0, kC);
+  a.arrival_s[2] += 2.205 / 44100.0;
+  const std::vector<double> before = a.arrival_s;
+  EXPECT_EQ(amil::resolve_cycles(beeps, a, cfg), 0);  // no carrier period
+  EXPECT_EQ(a.arrival_s, before);
+  a.carrier_period_s = 2.205 / 44100.0;
+  a.cycle_offset_s.assign(3, 0.0);  // wrong length: not applicable
+  EXPECT_EQ(amil::resolve_cycles(beeps, a, cfg), 0);
+  EXPECT_EQ(a.arrival_s, before);
+}

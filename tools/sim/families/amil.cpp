@@ -48,6 +48,9 @@ Simulation make_amil(const FamilyOptions& opts) {
   if (pause_max < pause_min) throw std::invalid_argument("option 'pause_max_s' must be >= pause_min_s");
   const double imu_rate = opts.get_double("imu_rate_hz", 100.0, 20.0, 1000.0);
   const bool transducers = opts.get_bool("transducers", true);
+  const bool tail = opts.get_bool("tail", true);  // the room's diffuse reverberant tail
+  const double imu_error_scale = opts.get_double("imu_error_scale", 1.0, 0.0, 10.0);  // x the difficulty's IMU errors
+  const double tremor_m = opts.get_double("tremor_m", motion::GestureParams{}.tremor_m, 0.0, 0.01);  // hand tremor (std)
   const std::string bursts = opts.get_choice("bursts", easy ? "white" : "mixed", {"white", "babble", "music", "mixed"});
   // the hand, per difficulty: wiggle (m), mid-stroke yaw (rad), corner miss (m), table tilt (rad)
   const double wiggle = opts.get_double("wiggle_m", easy ? 0.001 : hard ? 0.005 : 0.003, 0.0, 0.05);
@@ -64,7 +67,7 @@ Simulation make_amil(const FamilyOptions& opts) {
   sim.acoustics.room->size_m = {3.0, 5.4, 2.7};
   apply_profile(prof, sim.acoustics);
   sim.acoustics.air_absorption = true;      // 0.47 dB/m at 19 kHz
-  sim.acoustics.room->diffuse_tail = true;  // reverberation beyond the image sources
+  sim.acoustics.room->diffuse_tail = tail;  // reverberation beyond the image sources
   NoiseModel& nm = sim.acoustics.noise;
   nm.self_noise_snr_db = easy ? 60.0 : hard ? 40.0 : 50.0;
   if (bursts != "white") {
@@ -114,6 +117,8 @@ Simulation make_amil(const FamilyOptions& opts) {
     g.waypoints_m.push_back({0.0, 0.0});
   }
   g.wiggle_m = wiggle;
+  g.tremor_m = tremor_m;
+  g.tremor_rad = tremor_m * (motion::GestureParams{}.tremor_rad / motion::GestureParams{}.tremor_m);
   g.yaw_stroke_rad = yaw_stroke;
   g.waypoint_jitter_m = corner_miss;
   g.tilt_pitch_rad = tilt_std * hand.normal();
@@ -144,7 +149,7 @@ Simulation make_amil(const FamilyOptions& opts) {
   imu.gyro_bias_std_radps = 0.004;
   imu.accel_scale_std = 0.004;
   imu.gyro_scale_std = 0.004;
-  imu.scale_errors(prof.imu_noise_scale);
+  imu.scale_errors(prof.imu_noise_scale * imu_error_scale);
   player.imu = std::make_shared<motion::PhoneImu>(imu);
   sim.devices.push_back(player);
 

@@ -18,6 +18,7 @@
 // whole cycles with noise. Interpolate the envelope, then refine with the phase.
 #pragma once
 
+#include <complex>
 #include <cstddef>
 
 namespace locus::dsp {
@@ -49,6 +50,22 @@ double sinc_interpolate(const float* x, std::size_t n, double t, std::size_t hal
 /// omega_c = 2 pi f_c / fs (radians per sample, > 0) the centroid of the template's energy spectrum.
 /// Pick k0 as the sample nearest the envelope estimate so that |d| < half a carrier period.
 double phase_refine(double re, double im, double omega_c) noexcept;
+
+/// Envelope peak and carrier-phase delay of an analytic correlation, with no shape assumption.
+/// z[0..n-1] are consecutive lags around the integer envelope maximum z[k0]; the carrier-free
+/// baseband z[i] e^{-j omega_c (i - k0)} is smooth (its bandwidth is the signal's, far below fs for
+/// an ultrasonic chirp), so a degree-6 Lagrange polynomial through the 7 lags k0-3..k0+3 reconstructs it
+/// to ~1e-4 and |.| is maximised over [k0 - 1, k0 + 1] (golden section). Unlike a 3-point fit, the
+/// envelope offset found is the same for every arrival through one channel whatever its fractional
+/// delay (a transducer or multipath that skews the envelope biases it by a constant), so the carrier
+/// cycle chosen from it is too. Needs k0 >= 3 and k0 + 3 < n; otherwise falls back to a 3-point
+/// Gaussian fit of |z| with phase_refine_near().
+struct AnalyticPeak {
+  double envelope = 0.0;   ///< envelope maximum (offset from k0, samples)
+  double delay = 0.0;      ///< delay: the zero of the carrier phase nearest the envelope maximum (offset from k0)
+  double magnitude = 0.0;  ///< |z| at the envelope maximum
+};
+AnalyticPeak analytic_peak(const std::complex<float>* z, std::size_t n, std::size_t k0, double omega_c) noexcept;
 
 /// Chooses among the phase candidates d + m * 2 pi / omega_c (m integer) the one nearest the
 /// coarse (envelope) offset `coarse` (both relative to k0): resolves the carrier-cycle ambiguity

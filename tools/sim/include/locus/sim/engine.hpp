@@ -185,15 +185,18 @@ struct Room {
   std::array<double, 6> reflection{0.7, 0.7, 0.7, 0.7, 0.7, 0.7};
   int max_order = 2;  ///< 0 = direct path only
   /// Diffuse reverberant tail beyond the image sources (off by default): per (emission, receiver,
-  /// mic) a sparse random impulse response of `tail_taps` taps, uniformly spread over
-  /// [t_s, t_s + 5·τ] after the direct path (t_s = max_order·L_min/c: where the image sources
-  /// thin out; τ = RT60/6.91 from Sabine with ᾱ = 1 − mean β² and the air absorption at the
-  /// signal's centre frequency), amplitudes N(0,1)·e^(−t/τ), scaled so that the tail's energy is
-  /// the late part e^(−2 t_s/τ) of the Sabine diffuse-field energy 16π/A relative to the direct
-  /// sound at 1 m (A = S·ᾱ + 4·m·V, the room's absorption area). Integer-sample tap delays: a
-  /// diffuse field has no coherent arrival to time.
+  /// mic) a sparse random impulse response over [t_s, t_s + 5·τ] after the direct path (t_s =
+  /// max_order·L_min/c: where the image sources thin out; τ = RT60/6.91 from Sabine with ᾱ = 1 − mean
+  /// β² and the air absorption at the signal's centre frequency). Its taps are the room's reflections:
+  /// as many as the echo density 4π c³ t² / V gives over that span (at most `tail_taps`), at times
+  /// drawn with that t² density, amplitudes N(0,1)·e^(−t/τ)/(c t), scaled so that the tail's energy is
+  /// the late part e^(−2 t_s/τ) of the Sabine diffuse-field energy 16π/A relative to the direct sound
+  /// at 1 m (A = S·ᾱ + 4·m·V, the room's absorption area), and none louder than one path of its length
+  /// with max_order + 1 reflections can be (β_max^(max_order+1)·e^(−κ c t)/(c t)): far from the source
+  /// the tail holds more energy than the direct path, but no single late copy outshines it. Integer-sample tap delays: a diffuse field has no
+  /// coherent arrival to time.
   bool diffuse_tail = false;
-  int tail_taps = 400;
+  int tail_taps = 3000;
   void set_reflection(double beta) { reflection.fill(beta); }
 };
 
