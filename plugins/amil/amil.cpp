@@ -399,8 +399,14 @@ class AmilLocalizer final : public Localizer {
       if (timed > 0 && timed == static_cast<int>(std::count_if(arr.arrival_s.begin(), arr.arrival_s.end(),
                                                               [](double a) { return std::isfinite(a); }))) {
         arr.carrier_period_s = period_sum / timed;
-        // the cycle choice below replaces the detector's doubt about it
-        for (std::size_t k = 0; k < nb; ++k) arr.arrival_std_s[k] = solver_.timing_std_s;
+        // the cycle is settled over all the arrivals below (their std back to the base); the
+        // detector's doubt stays as a doubt about the path (the `weak` flag)
+        arr.path_doubt_s.assign(nb, 0.0);
+        for (std::size_t k = 0; k < nb; ++k) {
+          arr.path_doubt_s[k] = std::sqrt(std::max(0.0, arr.arrival_std_s[k] * arr.arrival_std_s[k] -
+                                                            solver_.timing_std_s * solver_.timing_std_s));
+          arr.arrival_std_s[k] = solver_.timing_std_s;
+        }
         const int moved = amil::resolve_cycles(beeps, arr, solver_);
         if (moved > 0)
           log_->debug(tag + ": listener " + id + ": " + std::to_string(moved) + " arrival(s) moved by whole carrier cycles");

@@ -922,7 +922,8 @@ Solution joint_solution(const Obs& o, const ListenerArrivals& arr, Method method
     for (int k = 0; k < jr.used.n(); ++k) {
       const auto i = static_cast<std::size_t>(jr.used.index[static_cast<std::size_t>(k)]);
       const double sk = i < arr.arrival_std_s.size() && std::isfinite(arr.arrival_std_s[i]) ? arr.arrival_std_s[i] : tstd;
-      if (sk <= kReliableTimingFactor * tstd) ++sol.reliable_beeps;
+      const double doubt = i < arr.path_doubt_s.size() && std::isfinite(arr.path_doubt_s[i]) ? arr.path_doubt_s[i] : 0.0;
+      if (std::hypot(sk, doubt) <= kReliableTimingFactor * tstd) ++sol.reliable_beeps;
     }
     sol.weak = sol.reliable_beeps < 4;  // fewer reliable equations than unknowns (x, y, skew, offset)
   }

@@ -91,6 +91,12 @@ struct ListenerArrivals {
   /// envelope maximum (AudioDetection::envelope_frame).
   double carrier_period_s = 0.0;
   std::vector<double> cycle_offset_s;
+  /// Optional per-arrival doubt (s) that the arrival is the direct path at all (the detector's
+  /// multipath fit disagreed with the envelope: an obstructed listener's reflection looks like that).
+  /// It does not weight the fit (resolve_cycles() settles the cycle) but an arrival whose doubt, added
+  /// to its std, passes 5x the base timing std is not reliable, and fewer than 4 reliable arrivals mark
+  /// the solution `weak`.
+  std::vector<double> path_doubt_s;
 };
 
 struct SolverConfig {

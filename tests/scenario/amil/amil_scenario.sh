@@ -48,4 +48,6 @@ run_case paper-1g-s3 3 1 "$OLD" --min-located-fraction 1.0 --max-unflagged-direc
 run_case paper-1g-s11 11 1 "$OLD" --min-located-fraction 1.0 --max-unflagged-direction-error-deg "$DIR1" $NEAR
 run_case paper-3g-s5 5 3 "$OLD" --min-located-fraction 1.0 --max-unflagged-direction-error-deg "$DIR3"
 run_case world-1g-s3 3 1 "" --min-located-fraction 1.0 --max-unflagged-direction-error-deg "$DIR1"
+# hard: obstructed listeners' first paths are reflections; what is not flagged must be right
+run_case world-hard-1g-s6 6 1 "--difficulty hard" --max-unflagged-direction-error-deg 5
 exit "$fail"
