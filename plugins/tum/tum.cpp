@@ -1,0 +1,421 @@
+// The `tum` localizer: exchange bookkeeping, link plumbing, estimates. See tum.hpp for the design and
+// docs/tum.md for the user's view; the maths lives in solver.cpp and tracker.cpp.
+#include "tum.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <deque>
+#include <limits>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "messages.hpp"
+#include "solver.hpp"
+#include "tracker.hpp"
+
+namespace locus::plugins::tum {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kNaNd = std::numeric_limits<double>::quiet_NaN();
+
+struct Detection {
+  double t_s = 0.0;
+  int tone = 0;  ///< 1 or 2
+  std::uint32_t channel = 0;
+  float snr_db = 0.0f;
+};
+
+struct RemoteDevice {
+  std::vector<DeviceExchange> exchanges;
+  std::vector<Stamp> stamps;
+  std::optional<double> offset_s;    ///< its clock minus device 1's, once aligned
+  std::deque<double> recent_offsets;
+  std::size_t used_upto = 0;         ///< exchanges before this index can no longer pair
+};
+
+DeviceExchange to_exchange(const ObsMessage& m) {
+  DeviceExchange d;
+  d.id = m.device;
+  for (const auto& v : m.mics_m) d.mics.emplace_back(v[0], v[1], v[2]);
+  if (m.speaker_m) d.speaker = Eigen::Vector3d((*m.speaker_m)[0], (*m.speaker_m)[1], (*m.speaker_m)[2]);
+  if (m.q_wxyz) d.attitude = Eigen::Quaterniond((*m.q_wxyz)[0], (*m.q_wxyz)[1], (*m.q_wxyz)[2], (*m.q_wxyz)[3]).normalized();
+  d.moving = m.moving;
+  d.t1_s = m.t1_s;
+  d.t2_s = m.t2_s;
+  return d;
+}
+
+class TumLocalizer final : public Localizer {
+ public:
+  ~TumLocalizer() override {
+    if (link_ != nullptr) link_->unsubscribe(subscription_);
+  }
+
+  /// [main]
+  void configure(const Params& params, HostContext& ctx) override {
+    log_ = &ctx.log;
+    link_ = &ctx.link;
+    instance_ = std::string(ctx.instance);
+    device_ = !ctx.device.empty() ? std::string(ctx.device) : params.get_string("device");
+    prefix_ = params.get_string("topic");
+    if (prefix_.empty() || prefix_.find_first_of("+#") != std::string::npos || prefix_.back() == '/')
+      throw std::runtime_error("tum: param 'topic': expected a non-empty topic prefix without '+', '#' or a trailing '/', got '" +
+                               prefix_ + "'");
+    detector_ = params.get_string("detector");
+    pair_window_s_ = params.get_float("pair_window_s");
+    cfg_.speed_of_sound_mps = params.get_float("speed_of_sound_mps");
+    calibrate_c_ = cfg_.speed_of_sound_mps == 0.0;
+    if (calibrate_c_) cfg_.speed_of_sound_mps = 343.2;
+    cfg_.timing_std_s = params.get_float("timing_std_s");
+    cfg_.attitude_std_rad = params.get_float("attitude_std_rad");
+    cfg_.max_range_m = params.get_float("max_range_m");
+    max_spread_m_ = params.get_float("max_spread_m");
+    motion_gyro_radps_ = params.get_float("motion_gyro_radps");
+    tracker_cfg_.filter = params.get_string("filter") == "particle";
+    tracker_cfg_.particles = static_cast<int>(params.get_int("particles"));
+    tracker_cfg_.outlier_jump_m = params.get_float("outlier_jump_m");
+    tracker_cfg_.moving_speed_mps = params.get_float("moving_speed_mps");
+
+    // Geometry of this device (from the scene on replay, from the config's geometry on a node).
+    if (ctx.geometry != nullptr) {
+      for (std::uint32_t k = 0; k < ctx.geometry->mic_count; ++k) mics_.push_back(ctx.geometry->mics_m[k]);
+      if (ctx.geometry->has_speaker) speaker_ = ctx.geometry->speaker_m;
+    }
+
+    // The working pair and the template index of each tone: the scene's distinct lfm signals in scene
+    // order, as the chirp detector numbers them with `from_scene`.
+    std::string w1 = params.get_string("device1"), w2 = params.get_string("device2");
+    template1_ = static_cast<int>(params.get_int("template1"));
+    template2_ = static_cast<int>(params.get_int("template2"));
+    if (ctx.geometry != nullptr && !ctx.geometry->scene_emits.empty()) {
+      std::vector<const SignalSpec*> lfms;
+      std::vector<std::string> emitters;  // emitters of lfm signals, scene order, distinct
+      for (const SceneSignal& s : ctx.geometry->scene_emits) {
+        if (s.signal.type != "lfm") continue;
+        int index = -1;
+        for (std::size_t t = 0; t < lfms.size(); ++t) {
+          const SignalSpec& o = *lfms[t];
+          if (o.f0_hz == s.signal.f0_hz && o.f1_hz == s.signal.f1_hz && o.duration_s == s.signal.duration_s &&
+              o.fade_s == s.signal.fade_s)
+            index = static_cast<int>(t);
+        }
+        if (index < 0) {
+          index = static_cast<int>(lfms.size());
+          lfms.push_back(&s.signal);
+        }
+        if (std::find(emitters.begin(), emitters.end(), s.id) == emitters.end()) {
+          emitters.push_back(s.id);
+          template_of_[s.id] = index;
+        }
+      }
+      if (w1.empty() && emitters.size() >= 1) w1 = emitters[0];
+      if (w2.empty() && emitters.size() >= 2) w2 = emitters[1];
+      if (template_of_.count(w1)) template1_ = template_of_[w1];
+      if (template_of_.count(w2)) template2_ = template_of_[w2];
+    }
+    if (w1.empty() || w2.empty() || w1 == w2)
+      throw std::runtime_error("tum: cannot tell the two working devices: the scene declares " +
+                               std::string(w1.empty() ? "no" : "one") +
+                               " emitting device; set params device1 and device2 (and template1, template2)");
+    if (template1_ == template2_)
+      throw std::runtime_error("tum: the working devices " + w1 + " and " + w2 +
+                               " emit the same signal; TUM needs two distinguishable tones (docs/tum.md)");
+    device1_ = w1;
+    device2_ = w2;
+    reporter_ = device_ == device1_;
+
+    subscription_ = ctx.link.subscribe(topic_filter(prefix_), [this](const LinkMessage& m) { on_message(m); });
+  }
+
+  /// [main]
+  std::vector<EventType> subscriptions() const override {
+    return {EventType::AudioDetection, EventType::Attitude, EventType::ImuSample};
+  }
+
+  /// [main]
+  void on_event(const Event& event, Publisher& out) override {
+    if (const auto* d = std::get_if<AudioDetection>(&event)) {
+      if (d->device.view() != device_ || !(d->sample_rate_hz > 0)) return;
+      if (!detector_.empty() && d->detector.view() != detector_ && d->detector.view() != detector_ + "_" + device_) return;
+      const int tone = d->template_index == template1_ ? 1 : d->template_index == template2_ ? 2 : 0;
+      if (tone == 0 || d->channel >= mics_.size()) return;
+      const double t = d->frame / d->sample_rate_hz;
+      close_exchanges(t);
+      pending_.push_back(Detection{t, tone, d->channel, d->snr_db});
+    } else if (const auto* a = std::get_if<Attitude>(&event)) {
+      if (a->device.view() != device_) return;
+      attitudes_.push_back({a->t_s, {a->q_wxyz[0], a->q_wxyz[1], a->q_wxyz[2], a->q_wxyz[3]}});
+      while (attitudes_.size() > 256) attitudes_.pop_front();
+    } else if (const auto* s = std::get_if<ImuSample>(&event)) {
+      if (s->device.view() != device_) return;
+      const double g = std::sqrt(double(s->gyro_radps[0]) * s->gyro_radps[0] + double(s->gyro_radps[1]) * s->gyro_radps[1] +
+                                 double(s->gyro_radps[2]) * s->gyro_radps[2]);
+      motion_.push_back({s->t_s, g > motion_gyro_radps_});
+      while (motion_.size() > 4096) motion_.pop_front();
+    }
+    if (reporter_) process(out, false);
+  }
+
+  /// [main] All inputs ended.
+  void finish(Publisher& out) override {
+    close_exchanges(kInf);
+    if (reporter_) {
+      process(out, true);
+      log_->info("tum: " + device_ + ": " + std::to_string(solved_) + " exchanges solved, " + std::to_string(failed_) +
+                 " not (" + first_failure_ + "), " + std::to_string(published_) + " estimates");
+      for (const auto& [id, r] : remote_)
+        if (!r.offset_s && id != device_)
+          log_->warn("tum: the exchanges of " + id + " never paired with " + device1_ + "'s (" +
+                     std::to_string(r.exchanges.size()) + " heard): it is not located");
+    }
+    if (bad_messages_ > 0)
+      log_->warn("tum: " + std::to_string(bad_messages_) + " malformed link messages ignored (first: " + first_bad_ + ")");
+    if (mics_.size() < 2) log_->warn("tum: " + device_ + " has fewer than 2 microphones in its geometry: it cannot be located");
+  }
+
+ private:
+  struct AttitudeAt {
+    double t_s;
+    std::array<double, 4> q;
+  };
+  struct MotionAt {
+    double t_s;
+    bool moving;
+  };
+
+  /// Publishes every exchange whose window has closed by local time `now`.
+  void close_exchanges(double now) {
+    std::sort(pending_.begin(), pending_.end(), [](const Detection& a, const Detection& b) { return a.t_s < b.t_s; });
+    while (!pending_.empty() && now > pending_.front().t_s + pair_window_s_) {
+      const double start = pending_.front().t_s;
+      auto end = std::find_if(pending_.begin(), pending_.end(), [&](const Detection& d) { return d.t_s > start + pair_window_s_; });
+      ObsMessage m;
+      m.device = device_;
+      m.seq = seq_++;
+      for (const auto& v : mics_) m.mics_m.push_back(v);
+      m.speaker_m = speaker_;
+      m.t1_s.assign(mics_.size(), kNaNd);
+      m.t2_s.assign(mics_.size(), kNaNd);
+      std::vector<float> snr1(mics_.size(), -1e9f), snr2(mics_.size(), -1e9f);
+      for (auto it = pending_.begin(); it != end; ++it) {
+        auto& t = it->tone == 1 ? m.t1_s : m.t2_s;
+        auto& s = it->tone == 1 ? snr1 : snr2;
+        if (it->snr_db > s[it->channel]) s[it->channel] = it->snr_db, t[it->channel] = it->t_s;
+      }
+      // The attitude at the exchange: the nearest Attitude event.
+      const AttitudeAt* best = nullptr;
+      for (const auto& a : attitudes_)
+        if (!best || std::abs(a.t_s - start) < std::abs(best->t_s - start)) best = &a;
+      if (best != nullptr && std::abs(best->t_s - start) < 1.0) m.q_wxyz = best->q;
+      // Moving: the gyro saw rotation since the previous exchange (or in the last second).
+      const double since = std::max(last_exchange_s_, start - 1.0);
+      for (const auto& mo : motion_)
+        if (mo.t_s > since && mo.t_s <= start + pair_window_s_ && mo.moving) m.moving = true;
+      last_exchange_s_ = start;
+      pending_.erase(pending_.begin(), end);
+      if (mics_.size() >= 2) link_->publish(topic_obs(prefix_, device_), encode(m));
+    }
+  }
+
+  /// [main] Link handler: every instance's exchanges; only the reporter keeps them.
+  void on_message(const LinkMessage& msg) {
+    if (!reporter_) return;
+    Decoded d = decode(prefix_, msg.topic, msg.payload);
+    if (!d.obs) {
+      if (bad_messages_++ == 0) first_bad_ = msg.topic + ": " + d.error;
+      return;
+    }
+    RemoteDevice& r = remote_[d.obs->device];
+    DeviceExchange ex = to_exchange(*d.obs);
+    r.stamps.push_back(stamp_of(ex));
+    r.exchanges.push_back(std::move(ex));
+    if (std::find(order_.begin(), order_.end(), d.obs->device) == order_.end()) order_.push_back(d.obs->device);
+  }
+
+  double interval_tolerance_s() const { return 2.0 * max_spread_m_ / cfg_.speed_of_sound_mps + 0.002; }
+
+  /// Solves the reporter's exchanges whose partners have all arrived (or `final`).
+  void process(Publisher& out, bool final) {
+    auto self = remote_.find(device1_);
+    auto second = remote_.find(device2_);
+    if (self == remote_.end() || second == remote_.end()) return;
+    RemoteDevice& ref = self->second;
+    const double tol = pair_window_s_;
+    for (auto& [id, r] : remote_) {
+      if (id == device1_ || r.offset_s) continue;
+      int pairs = 0;
+      r.offset_s = align_clocks(ref.stamps, r.stamps, tol, interval_tolerance_s(), std::min<int>(3, static_cast<int>(ref.stamps.size())), &pairs);
+      if (r.offset_s && pairs < 3 && !final) r.offset_s.reset();
+    }
+    while (next_ < ref.exchanges.size()) {
+      const Stamp& rs = ref.stamps[next_];
+      const double t_ref = std::isfinite(rs.t1) ? rs.t1 : rs.t2;
+      std::vector<DeviceExchange> devs{ref.exchanges[next_]};
+      std::vector<std::string> ids{device1_};
+      bool wait = false;
+      std::vector<std::string> order{device2_};
+      for (const auto& id : order_)
+        if (id != device1_ && id != device2_) order.push_back(id);
+      for (const auto& id : order) {
+        RemoteDevice& r = remote_[id];
+        if (!r.offset_s) {
+          if (!final && id == device2_) wait = true;
+          if (id == device2_) break;
+          continue;
+        }
+        const int j = match_stamp(rs, r.stamps, *r.offset_s, tol, interval_tolerance_s());
+        if (j >= 0) {
+          devs.push_back(r.exchanges[static_cast<std::size_t>(j)]);
+          ids.push_back(id);
+          const Stamp& ds = r.stamps[static_cast<std::size_t>(j)];
+          const double o = std::isfinite(ds.t1) && std::isfinite(rs.t1) ? ds.t1 - rs.t1 : ds.t2 - rs.t2;
+          r.recent_offsets.push_back(o);
+          while (r.recent_offsets.size() > 9) r.recent_offsets.pop_front();
+          std::vector<double> s(r.recent_offsets.begin(), r.recent_offsets.end());
+          std::nth_element(s.begin(), s.begin() + s.size() / 2, s.end());
+          r.offset_s = s[s.size() / 2];  // follows clock drift
+        } else if (!final) {
+          const double last = r.stamps.empty() ? -kInf : std::isfinite(r.stamps.back().t1) ? r.stamps.back().t1 : r.stamps.back().t2;
+          if (last < t_ref + *r.offset_s + 2.0 * tol) wait = true;  // may still come
+        }
+        if (id == device2_ && devs.size() < 2) break;
+      }
+      if (wait) return;
+      ++next_;
+      if (devs.size() < 2 || devs[1].id != device2_) {
+        note_failure(device2_ + " did not hear exchange " + std::to_string(next_ - 1));
+        continue;
+      }
+      solve_and_publish(devs, out);
+    }
+  }
+
+  void note_failure(const std::string& why) {
+    if (failed_++ == 0) first_failure_ = why;
+  }
+
+  void solve_and_publish(const std::vector<DeviceExchange>& devs, Publisher& out) {
+    if (calibrate_c_) {
+      if (auto c = speed_of_sound_sample(devs[0], devs[0].t1_s)) c_samples_.push_back(*c);
+      if (auto c = speed_of_sound_sample(devs[1], devs[1].t2_s)) c_samples_.push_back(*c);
+      if (!c_samples_.empty()) {
+        std::vector<double> s = c_samples_;
+        std::nth_element(s.begin(), s.begin() + s.size() / 2, s.end());
+        if (s[s.size() / 2] > 300.0 && s[s.size() / 2] < 400.0) cfg_.speed_of_sound_mps = s[s.size() / 2];
+      }
+    }
+    std::vector<std::optional<Eigen::Vector3d>> priors;
+    for (const auto& d : devs) {
+      auto it = trackers_.find(d.id);
+      priors.push_back(it != trackers_.end() ? it->second.prior() : std::nullopt);
+    }
+    const ExchangeResult res = solve_exchange(devs, cfg_, priors);
+    if (!res.devices.empty() && !res.devices[1].ok) {
+      note_failure(res.devices[1].why);
+      return;
+    }
+    ++solved_;
+    for (std::size_t i = 0; i < res.devices.size(); ++i) {
+      const Placement& p = res.devices[i];
+      if (debug_) {
+        std::string line = "tum: exchange t=" + std::to_string(res.t_ref_s) + " c=" + std::to_string(cfg_.speed_of_sound_mps) + " " + p.id + " roots:";
+        for (const auto& r : p.roots)
+          line += " [" + std::to_string(r.x[0]) + " " + std::to_string(r.x[1]) + " " + std::to_string(r.x[2]) + " cost " + std::to_string(r.cost) + "]";
+        log_->debug(line);
+      }
+      if (!p.ok) continue;
+      Tracker& tr = trackers_.try_emplace(p.id, tracker_cfg_, std::hash<std::string>{}(p.id)).first->second;
+      const TrackOutput t = i == 0 ? TrackOutput{true, false, p.origin, Eigen::Matrix3d::Zero(), 1.0}
+                                   : tr.update(p, devs[i].moving, res.t_ref_s);
+      if (!t.ok) continue;
+      Estimate e;
+      e.plugin.assign(instance_);
+      e.reference.assign(device1_);
+      e.frame.assign("body");
+      e.target.assign(p.id);
+      e.t_s = res.t_ref_s;
+      e.position_m = {t.origin[0], t.origin[1], t.origin[2]};
+      e.dims = 3;
+      e.distance_m = t.origin.norm();
+      e.std_m = std::sqrt(std::max(0.0, t.cov.trace()));
+      e.confidence = static_cast<float>(t.confidence);
+      if (t.outlier) e.flags |= kEstimateInconsistent;
+      if (i > 0 && p.roots.size() > 1 && p.roots[1].cost < p.roots[0].cost + 9.0) e.flags |= kEstimateAmbiguous;
+      out.publish(e);
+      ++published_;
+    }
+  }
+
+  Logger* log_ = nullptr;
+  Link* link_ = nullptr;
+  std::uint64_t subscription_ = 0;
+  std::string instance_, device_, prefix_, detector_, device1_, device2_;
+  bool reporter_ = false;
+  int template1_ = 0, template2_ = 1;
+  std::map<std::string, int> template_of_;
+  std::vector<std::array<double, 3>> mics_;
+  std::optional<std::array<double, 3>> speaker_;
+  double pair_window_s_ = 0.15, max_spread_m_ = 5.0, motion_gyro_radps_ = 0.05;
+  bool calibrate_c_ = true;
+  bool debug_ = std::getenv("LOCUS_TUM_DEBUG") != nullptr;
+  SolverConfig cfg_;
+  TrackerConfig tracker_cfg_;
+  // every instance
+  std::vector<Detection> pending_;
+  std::deque<AttitudeAt> attitudes_;
+  std::deque<MotionAt> motion_;
+  std::uint64_t seq_ = 0;
+  double last_exchange_s_ = -kInf;
+  // reporter
+  std::map<std::string, RemoteDevice> remote_;
+  std::vector<std::string> order_;
+  std::map<std::string, Tracker> trackers_;
+  std::vector<double> c_samples_;
+  std::size_t next_ = 0;
+  std::uint64_t solved_ = 0, failed_ = 0, published_ = 0, bad_messages_ = 0;
+  std::string first_failure_, first_bad_;
+};
+
+}  // namespace
+
+const ParamSchema& schema() {
+  static const ParamSchema schema{
+      string_param("device", "", "Device this instance serves when the host gives none."),
+      string_param("device1", "", "Working device 1 (the output frame); \"\" = the first device of the scene that emits."),
+      string_param("device2", "", "Working device 2; \"\" = the second device of the scene that emits."),
+      int_param("template1", 0, 0, 65535, "", "Detector template of device 1's tone when the host knows no scene."),
+      int_param("template2", 1, 0, 65535, "", "Detector template of device 2's tone when the host knows no scene."),
+      string_param("topic", "tum", "Link topic prefix of the TUM messages (<topic>/obs/<device>)."),
+      string_param("detector", "", "Only detections of this detector instance (or <detector>_<device>); \"\" = any."),
+      float_param("pair_window_s", 0.15, 0.01, 5.0, "s",
+                  "Detections within this time of an exchange's first belong to it (loose sync: the two tones' offset)."),
+      float_param("speed_of_sound_mps", 0.0, 0.0, 400.0, "m/s",
+                  "Speed of sound; 0 = measured from the working devices' own emissions (known mic-speaker geometry)."),
+      float_param("timing_std_s", 2.0e-5, 1e-7, 1e-2, "s", "Arrival timing error (1 sigma) assumed by the solver."),
+      float_param("attitude_std_rad", 0.05, 0.0, 1.0, "rad", "Relative attitude error (1 sigma), applied to the mic/speaker lever arms."),
+      float_param("max_range_m", 10.0, 0.2, 100.0, "m", "Roots farther from device 1 are dropped."),
+      float_param("max_spread_m", 5.0, 0.1, 100.0, "m", "Largest distance between devices (pairs exchanges across clocks)."),
+      float_param("motion_gyro_radps", 0.05, 0.0, 10.0, "rad/s", "Gyro rate above which a device counts as moving."),
+      enum_param("filter", "particle", {"none", "particle"}, "none: every exchange solved alone (static); particle: Sec. V."),
+      int_param("particles", 200, 10, 100000, "", "Particles per tracked device."),
+      float_param("outlier_jump_m", 0.5, 0.01, 100.0, "m",
+                  "Sec. VIII: a fix farther than this (plus the motion allowed since the last) from the track is an outlier."),
+      float_param("moving_speed_mps", 0.5, 0.0, 20.0, "m/s", "Fastest motion the filter allows a moving device."),
+  };
+  return schema;
+}
+
+const locus_plugin_descriptor* descriptor() {
+  static const locus_plugin_descriptor d{
+      LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_LOCALIZER, "tum", "1",
+      "TUM: 3D relative positions of two-mic devices from a two-way tone exchange (paper 000)", 0,
+      [] { return &schema(); }, nullptr, [] { return static_cast<Localizer*>(new TumLocalizer); }};
+  return &d;
+}
+
+}  // namespace locus::plugins::tum
