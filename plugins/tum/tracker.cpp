@@ -124,3 +124,62 @@ TrackOutput Tracker::update(const Placement& p, bool moving, double t_s) {
 }
 
 }  // namespace locus::plugins::tum
+
+namespace locus::plugins::tum {
+
+TrackOutput Tracker::update_gaussian(const Eigen::Vector3d& x, const Eigen::Matrix3d& cov_in, bool moving, double t_s) {
+  Eigen::Matrix3d cov = cov_in;
+  if (!cov.allFinite()) cov = Eigen::Matrix3d::Identity() * 0.25;
+  cov += Eigen::Matrix3d::Identity() * 1e-6;
+  Eigen::LLT<Eigen::Matrix3d> llt(cov);
+  if (llt.info() != Eigen::Success) {
+    cov = Eigen::Matrix3d::Identity() * std::max(1e-4, cov.trace() / 3.0);
+    llt.compute(cov);
+  }
+  const Eigen::Matrix3d info = cov.inverse();
+  const Eigen::Matrix3d lower = llt.matrixL();
+  std::normal_distribution<double> n01(0.0, 1.0);
+  auto loglik = [&](const Eigen::Vector3d& p) {
+    const Eigen::Vector3d d = p - x;
+    return -0.5 * d.dot(info * d);
+  };
+  if (!initialised_) {
+    pf_.initialize([&](Eigen::Vector3d& p, auto& rng) { p = x + lower * Eigen::Vector3d(n01(rng), n01(rng), n01(rng)); });
+    initialised_ = true;
+    last_t_ = t_s;
+    TrackOutput o = summary(false);
+    mean_ = o.origin;
+    return o;
+  }
+  const double dt = std::clamp(t_s - last_t_, 0.0, 10.0);
+  last_t_ = t_s;
+  const double step = moving ? std::max(cfg_.still_step_m, cfg_.moving_speed_mps * dt) : cfg_.still_step_m;
+  pf_.predict([&](Eigen::Vector3d& p, auto& rng) { p += step * Eigen::Vector3d(n01(rng), n01(rng), n01(rng)); });
+  // Sec. VIII: a fix farther from the track than the motion since the last one allows is an outlier.
+  const double allowed = cfg_.outlier_jump_m + (moving ? 3.0 * cfg_.moving_speed_mps * dt : 0.0);
+  if ((x - mean_).norm() > allowed) {
+    if (++consecutive_outliers_ <= 3) {
+      TrackOutput o = summary(true);
+      mean_ = o.origin;
+      return o;
+    }
+    consecutive_outliers_ = 0;
+    initialised_ = false;  // the track, not the fixes, is wrong: restart from this fix
+    return update_gaussian(x, cov_in, moving, t_s);
+  }
+  consecutive_outliers_ = 0;
+  if (!pf_.update(loglik)) {
+    initialised_ = false;
+    return update_gaussian(x, cov_in, moving, t_s);
+  }
+  if (pf_.effective_sample_size() < 0.5 * static_cast<double>(pf_.size())) {
+    pf_.resample();
+    const double rough = 0.2 * step;
+    pf_.predict([&](Eigen::Vector3d& p, auto& rng) { p += rough * Eigen::Vector3d(n01(rng), n01(rng), n01(rng)); });
+  }
+  TrackOutput o = summary(false);
+  mean_ = o.origin;
+  return o;
+}
+
+}  // namespace locus::plugins::tum

@@ -49,6 +49,8 @@ class Tracker {
   std::optional<Eigen::Vector3d> prior() const;
   /// One exchange's placement of this device at time t (device 1's clock); `moving` from its IMU.
   TrackOutput update(const Placement& p, bool moving, double t_s);
+  /// One fix given as a Gaussian (the network solve's position and covariance).
+  TrackOutput update_gaussian(const Eigen::Vector3d& x, const Eigen::Matrix3d& cov, bool moving, double t_s);
   const dsp::ParticleFilter<Eigen::Vector3d>& filter() const { return pf_; }
 
  private:

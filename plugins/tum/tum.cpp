@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "messages.hpp"
+#include "network.hpp"
 #include "solver.hpp"
 #include "tracker.hpp"
 
@@ -80,6 +81,11 @@ class TumLocalizer final : public Localizer {
     tracker_cfg_.particles = static_cast<int>(params.get_int("particles"));
     tracker_cfg_.outlier_jump_m = params.get_float("outlier_jump_m");
     tracker_cfg_.moving_speed_mps = params.get_float("moving_speed_mps");
+    net_cfg_.window = static_cast<int>(params.get_int("window"));
+    net_cfg_.yaw_prior_rad = params.get_float("yaw_prior_rad");
+    net_cfg_.height_prior_m = params.get_float("height_prior_m");
+    net_cfg_.speed_mps = tracker_cfg_.moving_speed_mps;
+    std_floor_m_ = params.get_float("std_floor_m");
 
     // Geometry of this device (from the scene on replay, from the config's geometry on a node).
     if (ctx.geometry != nullptr) {
@@ -309,43 +315,43 @@ class TumLocalizer final : public Localizer {
         if (s[s.size() / 2] > 300.0 && s[s.size() / 2] < 400.0) cfg_.speed_of_sound_mps = s[s.size() / 2];
       }
     }
-    std::vector<std::optional<Eigen::Vector3d>> priors;
-    for (const auto& d : devs) {
-      auto it = trackers_.find(d.id);
-      priors.push_back(it != trackers_.end() ? it->second.prior() : std::nullopt);
-    }
-    const ExchangeResult res = solve_exchange(devs, cfg_, priors);
-    if (!res.devices.empty() && !res.devices[1].ok) {
-      note_failure(res.devices[1].why);
+    if (!network_) network_.emplace(cfg_, net_cfg_);
+    network_->set_speed_of_sound(cfg_.speed_of_sound_mps);
+    const NetworkResult res = network_->add(devs);
+    if (!res.ok) {
+      note_failure("exchange at " + std::to_string(devs[0].t1_s.empty() ? 0.0 : devs[0].t1_s[0]) + " s could not be solved");
       return;
     }
     ++solved_;
-    for (std::size_t i = 0; i < res.devices.size(); ++i) {
-      const Placement& p = res.devices[i];
-      if (debug_) {
-        std::string line = "tum: exchange t=" + std::to_string(res.t_ref_s) + " c=" + std::to_string(cfg_.speed_of_sound_mps) + " " + p.id + " roots:";
-        for (const auto& r : p.roots)
-          line += " [" + std::to_string(r.x[0]) + " " + std::to_string(r.x[1]) + " " + std::to_string(r.x[2]) + " cost " + std::to_string(r.cost) + "]";
-        log_->debug(line);
-      }
+    for (const NetworkPlacement& p : res.devices) {
       if (!p.ok) continue;
-      Tracker& tr = trackers_.try_emplace(p.id, tracker_cfg_, std::hash<std::string>{}(p.id)).first->second;
-      const TrackOutput t = i == 0 ? TrackOutput{true, false, p.origin, Eigen::Matrix3d::Zero(), 1.0}
-                                   : tr.update(p, devs[i].moving, res.t_ref_s);
-      if (!t.ok) continue;
+      Eigen::Vector3d x = p.origin;
+      Eigen::Matrix3d cov = p.cov;
+      bool outlier = false;
+      double confidence = 1.0;
+      if (p.id != device1_ && tracker_cfg_.filter && !p.still) {
+        Tracker& tr = trackers_.try_emplace(p.id, tracker_cfg_, std::hash<std::string>{}(p.id)).first->second;
+        const TrackOutput t = tr.update_gaussian(p.origin, p.cov, !p.still, res.t_ref_s);
+        x = t.origin, cov = t.cov, outlier = t.outlier, confidence = t.confidence;
+      } else if (p.id != device1_) {
+        confidence = 1.0 / (1.0 + std::sqrt(std::max(0.0, cov.trace())) / 0.1);
+      }
+      if (debug_)
+        log_->debug("tum: t=" + std::to_string(res.t_ref_s) + " " + p.id + " x=" + std::to_string(x[0]) + "," + std::to_string(x[1]) +
+                    "," + std::to_string(x[2]) + " yaw_off=" + std::to_string(p.yaw_offset_rad) + " rms=" + std::to_string(p.rms_sigma) +
+                    " chi2=" + std::to_string(res.chi2_dof) + (p.still ? " still" : " moving"));
       Estimate e;
       e.plugin.assign(instance_);
       e.reference.assign(device1_);
       e.frame.assign("body");
       e.target.assign(p.id);
       e.t_s = res.t_ref_s;
-      e.position_m = {t.origin[0], t.origin[1], t.origin[2]};
+      e.position_m = {x[0], x[1], x[2]};
       e.dims = 3;
-      e.distance_m = t.origin.norm();
-      e.std_m = std::sqrt(std::max(0.0, t.cov.trace()));
-      e.confidence = static_cast<float>(t.confidence);
-      if (t.outlier) e.flags |= kEstimateInconsistent;
-      if (i > 0 && p.roots.size() > 1 && p.roots[1].cost < p.roots[0].cost + 9.0) e.flags |= kEstimateAmbiguous;
+      e.distance_m = x.norm();
+      e.std_m = p.id == device1_ ? 0.0 : std::sqrt(std::max(0.0, cov.trace()) + std_floor_m_ * std_floor_m_);
+      e.confidence = static_cast<float>(confidence);
+      if (outlier) e.flags |= kEstimateInconsistent;
       out.publish(e);
       ++published_;
     }
@@ -365,6 +371,9 @@ class TumLocalizer final : public Localizer {
   bool debug_ = std::getenv("LOCUS_TUM_DEBUG") != nullptr;
   SolverConfig cfg_;
   TrackerConfig tracker_cfg_;
+  NetworkConfig net_cfg_;
+  std::optional<NetworkSolver> network_;
+  double std_floor_m_ = 0.0;
   // every instance
   std::vector<Detection> pending_;
   std::deque<AttitudeAt> attitudes_;
@@ -405,7 +414,12 @@ const ParamSchema& schema() {
       int_param("particles", 200, 10, 100000, "", "Particles per tracked device."),
       float_param("outlier_jump_m", 0.5, 0.01, 100.0, "m",
                   "Sec. VIII: a fix farther than this (plus the motion allowed since the last) from the track is an outlier."),
-      float_param("moving_speed_mps", 0.5, 0.0, 20.0, "m/s", "Fastest motion the filter allows a moving device."),
+      float_param("moving_speed_mps", 0.5, 0.01, 20.0, "m/s", "1-sigma speed of a moving device between exchanges (window smoother and filter)."),
+      int_param("window", 12, 1, 200, "", "Exchanges solved together (network solve, network.hpp)."),
+      float_param("yaw_prior_rad", 0.35, 0.001, 3.2, "rad", "1-sigma heading error of a device's attitude relative to device 1's (estimated per device)."),
+      float_param("height_prior_m", 0.5, 0.0, 100.0, "m",
+                  "1-sigma height of a device relative to device 1 (0 = none); only matters where the geometry leaves height unobservable."),
+      float_param("std_floor_m", 0.0, 0.0, 10.0, "m", "Added in quadrature to every reported std (unmodelled errors)."),
   };
   return schema;
 }
