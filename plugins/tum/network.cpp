@@ -44,6 +44,8 @@ struct Problem {
   std::vector<Eq> eqs;
   int n_params = 0;
   NetworkConfig net;
+  std::vector<double> psi_anchor;  ///< prior centre of each heading offset
+  double yaw_sigma = 0.35;         ///< prior 1-sigma (loose while something moves, tight when all is still)
 
   Eigen::Matrix3d rotation(int d, int k, const Eigen::VectorXd& p) const {
     return r1t[d][k] * rot_z(p[psi_index[d]]) * rd[d][k];
@@ -92,7 +94,7 @@ struct Problem {
       }
       r[i++] = v / e.sigma;
     }
-    for (int d = 0; d < n_dev; ++d) r[i++] = p[psi_index[d]] / net.yaw_prior_rad;
+    for (int d = 0; d < n_dev; ++d) r[i++] = (p[psi_index[d]] - psi_anchor[d]) / yaw_sigma;
     for (int d = 0; d < n_dev; ++d) {
       int prev = -1;
       bool done_still = false;
@@ -261,6 +263,12 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
     }
   }
   if (!pr.speaker[pr.dev2]) return out;
+  // Heading offsets are observable only while the geometry changes (a device moves): with every device
+  // still, each exchange repeats the same constraints and the offsets trade against positions. Then
+  // they keep what motion taught them (psi_anchor), held by the attitude's own accuracy.
+  const bool any_moving = std::find(pr.still.begin(), pr.still.end(), false) != pr.still.end();
+  pr.yaw_sigma = any_moving ? net_.yaw_prior_rad : net_.still_yaw_prior_rad;
+  for (int d = 0; d < pr.n_dev; ++d) pr.psi_anchor.push_back(any_moving ? 0.0 : state_[pr.ids[d]].psi_anchor);
   int np = 0;
   for (int d = 0; d < pr.n_dev; ++d) {
     pr.psi_index.push_back(np++);
@@ -359,7 +367,11 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
     init_rho(q);
     // Unknown monitors: multi-start on their own parameters with the rest fixed.
     for (int d = 0; d < pr.n_dev; ++d) {
-      if (d == pr.dev2 || known[static_cast<std::size_t>(d)]) continue;
+      // A device seen for the first time, and every device while the window fills (one exchange leaves
+      // a monitor nearly unobservable: its first basin may be wrong), is searched from many starts; a
+      // known device's current solution is one of them.
+      const bool warmup = K < net_.window || state_[pr.ids[d]].exchanges < net_.window;
+      if (d == pr.dev2 || (known[static_cast<std::size_t>(d)] && !warmup)) continue;
       std::vector<bool> mask(static_cast<std::size_t>(np), false);
       mask[static_cast<std::size_t>(pr.psi_index[d])] = true;
       for (int k = 0; k < K; ++k) {
@@ -372,6 +384,12 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
       double best_local_cost = kInf;
       const int n_dir = 26;
       const double golden = M_PI * (3.0 - std::sqrt(5.0));
+      if (known[static_cast<std::size_t>(d)]) {
+        Eigen::VectorXd t = q;
+        init_rho(t);
+        best_local_cost = solve_lm(pr, t, mask, 15);
+        best_local = t;
+      }
       for (double radius : {0.7, 1.5, 2.5}) {
         for (int i = 0; i < n_dir; ++i) {
           const double z = 1.0 - 2.0 * (i + 0.5) / n_dir;
@@ -415,10 +433,12 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
     for (int k = 0; k < K; ++k)
       if (pr.x_index[d][k] >= 0) xs[static_cast<std::size_t>(k)] = p.segment<3>(pr.x_index[d][k]);
     s.psi = p[pr.psi_index[d]];
+    if (any_moving) s.psi_anchor = s.psi;
     const int xi = pr.x_index[d][newest];
     if (xi < 0) continue;  // not in the newest exchange
     s.x = p.segment<3>(xi);
     s.known = true;
+    ++s.exchanges;
     NetworkPlacement np_;
     np_.id = pr.ids[d];
     np_.ok = true;

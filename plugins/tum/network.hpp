@@ -35,6 +35,7 @@ namespace locus::plugins::tum {
 struct NetworkConfig {
   int window = 12;                 ///< exchanges solved together
   double yaw_prior_rad = 0.35;     ///< 1-sigma of a device's heading error relative to device 1
+  double still_yaw_prior_rad = 0.35;  ///< ... when no device moved in the window (offsets unobservable)
   double height_prior_m = 0.5;     ///< 1-sigma of a device's height relative to device 1 (0 = none)
   double speed_mps = 0.5;          ///< 1-sigma speed of a moving device between exchanges
   double huber_k = 3.0;            ///< Huber threshold, in sigmas
@@ -75,6 +76,8 @@ class NetworkSolver {
     Eigen::Vector3d x = Eigen::Vector3d::Zero();
     double psi = 0.0;
     bool known = false;
+    int exchanges = 0;  ///< exchanges it was placed in
+    double psi_anchor = 0.0;  ///< heading offset learnt while something moved
   };
   SolverConfig cfg_;
   NetworkConfig net_;

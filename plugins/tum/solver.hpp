@@ -43,8 +43,8 @@ struct DeviceExchange {
 
 struct SolverConfig {
   double speed_of_sound_mps = 343.2;
-  double timing_std_s = 2.0e-5;      ///< arrival timing error (1 sigma)
-  double attitude_std_rad = 0.05;    ///< relative attitude error (1 sigma), applied to lever arms
+  double timing_std_s = 5.0e-6;      ///< arrival timing error (1 sigma)
+  double attitude_std_rad = 0.02;    ///< relative attitude error (1 sigma), applied to lever arms
   double max_range_m = 10.0;         ///< farther roots are dropped
   int directions = 40;               ///< multi-start directions per radius
 };

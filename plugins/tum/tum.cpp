@@ -84,6 +84,7 @@ class TumLocalizer final : public Localizer {
     net_cfg_.window = static_cast<int>(params.get_int("window"));
     net_cfg_.yaw_prior_rad = params.get_float("yaw_prior_rad");
     net_cfg_.height_prior_m = params.get_float("height_prior_m");
+    net_cfg_.still_yaw_prior_rad = params.get_float("still_yaw_prior_rad");
     net_cfg_.speed_mps = tracker_cfg_.moving_speed_mps;
     std_floor_m_ = params.get_float("std_floor_m");
 
@@ -251,7 +252,7 @@ class TumLocalizer final : public Localizer {
     auto second = remote_.find(device2_);
     if (self == remote_.end() || second == remote_.end()) return;
     RemoteDevice& ref = self->second;
-    const double tol = pair_window_s_;
+    const double tol = max_spread_m_ / cfg_.speed_of_sound_mps + 0.005;  // clock offset known to the propagation spread
     for (auto& [id, r] : remote_) {
       if (id == device1_ || r.offset_s) continue;
       int pairs = 0;
@@ -405,8 +406,8 @@ const ParamSchema& schema() {
                   "Detections within this time of an exchange's first belong to it (loose sync: the two tones' offset)."),
       float_param("speed_of_sound_mps", 0.0, 0.0, 400.0, "m/s",
                   "Speed of sound; 0 = measured from the working devices' own emissions (known mic-speaker geometry)."),
-      float_param("timing_std_s", 2.0e-5, 1e-7, 1e-2, "s", "Arrival timing error (1 sigma) assumed by the solver."),
-      float_param("attitude_std_rad", 0.05, 0.0, 1.0, "rad", "Relative attitude error (1 sigma), applied to the mic/speaker lever arms."),
+      float_param("timing_std_s", 5.0e-6, 1e-7, 1e-2, "s", "Arrival timing error (1 sigma) assumed by the solver."),
+      float_param("attitude_std_rad", 0.02, 0.0, 1.0, "rad", "Relative attitude error (1 sigma), applied to the mic/speaker lever arms."),
       float_param("max_range_m", 10.0, 0.2, 100.0, "m", "Roots farther from device 1 are dropped."),
       float_param("max_spread_m", 5.0, 0.1, 100.0, "m", "Largest distance between devices (pairs exchanges across clocks)."),
       float_param("motion_gyro_radps", 0.05, 0.0, 10.0, "rad/s", "Gyro rate above which a device counts as moving."),
@@ -417,6 +418,8 @@ const ParamSchema& schema() {
       float_param("moving_speed_mps", 0.5, 0.01, 20.0, "m/s", "1-sigma speed of a moving device between exchanges (window smoother and filter)."),
       int_param("window", 12, 1, 200, "", "Exchanges solved together (network solve, network.hpp)."),
       float_param("yaw_prior_rad", 0.35, 0.001, 3.2, "rad", "1-sigma heading error of a device's attitude relative to device 1's (estimated per device)."),
+      float_param("still_yaw_prior_rad", 0.35, 0.001, 3.2, "rad",
+                  "The same while no device moves in the window (offsets are then unobservable: the attitude's own accuracy)."),
       float_param("height_prior_m", 0.5, 0.0, 100.0, "m",
                   "1-sigma height of a device relative to device 1 (0 = none); only matters where the geometry leaves height unobservable."),
       float_param("std_floor_m", 0.0, 0.0, 10.0, "m", "Added in quadrature to every reported std (unmodelled errors)."),

@@ -43,7 +43,7 @@ struct RangeSolveOptions {
   int directions = 26;                               ///< ... in this many directions (Fibonacci sphere)
   bool solve_rho = true;                             ///< false: rho fixed at rho0
   double rho0 = 0.0;
-  int max_iterations = 40;
+  int max_iterations = 100;
   double distinct_m = 0.02;                          ///< roots closer than this are one
   double max_cost_ratio = 1e6;                       ///< drop roots costing this many times the best
 };
