@@ -423,6 +423,7 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
   Eigen::MatrixXd cov = lu.rank() == np ? Eigen::MatrixXd(lu.inverse()) : Eigen::MatrixXd::Identity(np, np) * kInf;
   out.ok = true;
   out.t_ref_s = ex.t_ref;
+  out.up = pr.up_k[static_cast<std::size_t>(newest)];
   NetworkPlacement p1;
   p1.id = id1;
   p1.ok = true;

@@ -56,6 +56,7 @@ struct NetworkResult {
   bool ok = false;
   double t_ref_s = 0.0;                   ///< newest exchange's time of validity (device 1 clock)
   double chi2_dof = 0.0;
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();  ///< world up in device 1's body frame (newest exchange)
   std::vector<NetworkPlacement> devices;  ///< device 1 first, then the newest exchange's devices
 };
 

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <deque>
 #include <limits>
 #include <map>
@@ -87,6 +86,7 @@ class TumLocalizer final : public Localizer {
     net_cfg_.still_yaw_prior_rad = params.get_float("still_yaw_prior_rad");
     net_cfg_.speed_mps = tracker_cfg_.moving_speed_mps;
     std_floor_m_ = params.get_float("std_floor_m");
+    debug_ = params.get_bool("log_fixes");
 
     // Geometry of this device (from the scene on replay, from the config's geometry on a node).
     if (ctx.geometry != nullptr) {
@@ -350,7 +350,17 @@ class TumLocalizer final : public Localizer {
       e.position_m = {x[0], x[1], x[2]};
       e.dims = 3;
       e.distance_m = x.norm();
-      e.std_m = p.id == device1_ ? 0.0 : std::sqrt(std::max(0.0, cov.trace()) + std_floor_m_ * std_floor_m_);
+      if (p.id != device1_) {
+        // 1-sigma of the position in the plane perpendicular to device 1's vertical: along the vertical
+        // flat devices leave the position to the height prior (network.hpp), whose spread says nothing
+        // about the error (docs/tum.md, "Uncertainty").
+        const Eigen::Vector3d up = res.up;
+        const Eigen::Matrix3d h = Eigen::Matrix3d::Identity() - up * up.transpose();
+        const double var_h = std::max(0.0, (h * cov * h).trace());
+        e.std_m = std::sqrt(var_h + std_floor_m_ * std_floor_m_);
+        const double r = x.norm();
+        if (r > 0) e.distance_std_m = std::sqrt(std::max(0.0, (x / r).dot(cov * (x / r))));
+      }
       e.confidence = static_cast<float>(confidence);
       if (outlier) e.flags |= kEstimateInconsistent;
       out.publish(e);
@@ -369,7 +379,7 @@ class TumLocalizer final : public Localizer {
   std::optional<std::array<double, 3>> speaker_;
   double pair_window_s_ = 0.15, max_spread_m_ = 5.0, motion_gyro_radps_ = 0.05;
   bool calibrate_c_ = true;
-  bool debug_ = std::getenv("LOCUS_TUM_DEBUG") != nullptr;
+  bool debug_ = false;
   SolverConfig cfg_;
   TrackerConfig tracker_cfg_;
   NetworkConfig net_cfg_;
@@ -411,7 +421,7 @@ const ParamSchema& schema() {
       float_param("max_range_m", 10.0, 0.2, 100.0, "m", "Roots farther from device 1 are dropped."),
       float_param("max_spread_m", 5.0, 0.1, 100.0, "m", "Largest distance between devices (pairs exchanges across clocks)."),
       float_param("motion_gyro_radps", 0.05, 0.0, 10.0, "rad/s", "Gyro rate above which a device counts as moving."),
-      enum_param("filter", "particle", {"none", "particle"}, "none: every exchange solved alone (static); particle: Sec. V."),
+      enum_param("filter", "none", {"none", "particle"}, "none: the window solve alone (network.hpp); particle: its fixes of moving devices through the Sec. V filter (tracker.hpp)."),
       int_param("particles", 200, 10, 100000, "", "Particles per tracked device."),
       float_param("outlier_jump_m", 0.5, 0.01, 100.0, "m",
                   "Sec. VIII: a fix farther than this (plus the motion allowed since the last) from the track is an outlier."),
@@ -422,6 +432,7 @@ const ParamSchema& schema() {
                   "The same while no device moves in the window (offsets are then unobservable: the attitude's own accuracy)."),
       float_param("height_prior_m", 0.5, 0.0, 100.0, "m",
                   "1-sigma height of a device relative to device 1 (0 = none); only matters where the geometry leaves height unobservable."),
+      bool_param("log_fixes", false, "Log every fix and every root at debug level (log_level: debug)."),
       float_param("std_floor_m", 0.0, 0.0, 10.0, "m", "Added in quadrature to every reported std (unmodelled errors)."),
   };
   return schema;
