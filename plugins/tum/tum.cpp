@@ -35,7 +35,7 @@ struct RemoteDevice {
   std::vector<Stamp> stamps;
   std::optional<double> offset_s;    ///< its clock minus device 1's, once aligned
   std::deque<double> recent_offsets;
-  std::size_t used_upto = 0;         ///< exchanges before this index can no longer pair
+  std::size_t aligned_at = 0;        ///< device 1's exchange count at the last pairing search
 };
 
 DeviceExchange to_exchange(const ObsMessage& m) {
@@ -253,11 +253,33 @@ class TumLocalizer final : public Localizer {
     if (self == remote_.end() || second == remote_.end()) return;
     RemoteDevice& ref = self->second;
     const double tol = max_spread_m_ / cfg_.speed_of_sound_mps + 0.005;  // clock offset known to the propagation spread
+    // Clock pairing: first after kAlignAfter exchanges (fewer let a wrong round shift tie with the
+    // right one), then again every kAlignAfter exchanges over the latest ones, switching when another
+    // offset pairs more of them.
+    constexpr std::size_t kAlignAfter = 6, kAlignSpan = 30;
     for (auto& [id, r] : remote_) {
-      if (id == device1_ || r.offset_s) continue;
+      if (id == device1_) continue;
+      const std::size_t n = std::min(ref.stamps.size(), r.stamps.size());
+      if (n == 0 || (!final && ref.stamps.size() < kAlignAfter)) continue;
+      if (r.offset_s && ref.stamps.size() < r.aligned_at + kAlignAfter && !final) continue;
+      if (r.offset_s && final && ref.stamps.size() == r.aligned_at) continue;
+      const std::vector<Stamp> rs(ref.stamps.end() - static_cast<std::ptrdiff_t>(std::min(ref.stamps.size(), kAlignSpan)), ref.stamps.end());
+      const std::vector<Stamp> ds(r.stamps.end() - static_cast<std::ptrdiff_t>(std::min(r.stamps.size(), kAlignSpan)), r.stamps.end());
       int pairs = 0;
-      r.offset_s = align_clocks(ref.stamps, r.stamps, tol, interval_tolerance_s(), std::min<int>(3, static_cast<int>(ref.stamps.size())), &pairs);
-      if (r.offset_s && pairs < 3 && !final) r.offset_s.reset();
+      const int need = std::max(2, static_cast<int>(std::min(rs.size(), ds.size()) / 2));
+      const auto off = align_clocks(rs, ds, tol, interval_tolerance_s(), need, &pairs);
+      r.aligned_at = ref.stamps.size();
+      if (!off) continue;
+      if (r.offset_s && std::abs(*off - *r.offset_s) < tol) continue;  // the same offset
+      int current = 0;
+      if (r.offset_s)
+        for (const Stamp& st : rs) current += match_stamp(st, ds, *r.offset_s, tol, interval_tolerance_s()) >= 0;
+      if (!r.offset_s || pairs > current) {
+        if (r.offset_s) log_->info("tum: " + id + ": clock pairing moved to another offset (" + std::to_string(pairs) + " vs " +
+                                   std::to_string(current) + " exchanges agree)");
+        r.offset_s = off;
+        r.recent_offsets.clear();
+      }
     }
     while (next_ < ref.exchanges.size()) {
       const Stamp& rs = ref.stamps[next_];
