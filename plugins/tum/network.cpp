@@ -45,6 +45,8 @@ struct Problem {
   int n_params = 0;
   NetworkConfig net;
   std::vector<double> psi_anchor;  ///< prior centre of each heading offset
+  mutable std::vector<Eigen::Matrix3d> rot_cache;  ///< [dev * K + k], per residuals() call
+  mutable std::vector<Eigen::Vector3d> n_cache;    ///< device 2's speaker per exchange
   double yaw_sigma = 0.35;         ///< prior 1-sigma (loose while something moves, tight when all is still)
 
   Eigen::Matrix3d rotation(int d, int k, const Eigen::VectorXd& p) const {
@@ -77,19 +79,33 @@ struct Problem {
   /// Whitened residuals; equation residuals first (eqs order), then priors.
   void residuals(const Eigen::VectorXd& p, Eigen::VectorXd& r) const {
     r.resize(n_residuals());
+    // Rotations and device 2's speaker, once per device and exchange.
+    const std::size_t K = m_k.size();
+    rot_cache.resize(static_cast<std::size_t>(n_dev) * K);
+    n_cache.resize(K);
+    for (int d = 0; d < n_dev; ++d) {
+      const Eigen::Matrix3d rz = rot_z(p[psi_index[d]]);
+      for (std::size_t k = 0; k < K; ++k)
+        if (x_index[d][k] >= 0) rot_cache[static_cast<std::size_t>(d) * K + k] = r1t[d][k] * rz * rd[d][k];
+    }
+    for (std::size_t k = 0; k < K; ++k)
+      if (x_index[dev2][k] >= 0)
+        n_cache[k] = p.segment<3>(x_index[dev2][k]) + rot_cache[static_cast<std::size_t>(dev2) * K + k] * *speaker[dev2];
     int i = 0;
     for (const Eq& e : eqs) {
       double v = 0.0;
+      const std::size_t k = static_cast<std::size_t>(e.k);
       switch (e.kind) {
         case Kind::OneHearsN:
-          v = (e.point - n_of(e.k, p)).norm() - p[rho_index[dev2][e.k]] - e.y;
+          v = (e.point - n_cache[k]).norm() - p[rho_index[dev2][e.k]] - e.y;
           break;
         case Kind::HearsM:
-          v = (x_of(e.dev, e.k, p) + rotation(e.dev, e.k, p) * e.point - m_k[e.k]).norm() + p[rho_index[e.dev][e.k]] - e.y;
+          v = (x_of(e.dev, e.k, p) + rot_cache[static_cast<std::size_t>(e.dev) * K + k] * e.point - m_k[k]).norm() +
+              p[rho_index[e.dev][e.k]] - e.y;
           break;
         case Kind::HearsN:
-          v = (x_of(e.dev, e.k, p) + rotation(e.dev, e.k, p) * e.point - n_of(e.k, p)).norm() + p[rho_index[e.dev][e.k]] -
-              p[rho_index[dev2][e.k]] - e.y;
+          v = (x_of(e.dev, e.k, p) + rot_cache[static_cast<std::size_t>(e.dev) * K + k] * e.point - n_cache[k]).norm() +
+              p[rho_index[e.dev][e.k]] - p[rho_index[dev2][e.k]] - e.y;
           break;
       }
       r[i++] = v / e.sigma;
@@ -115,6 +131,86 @@ struct Problem {
     }
   }
 };
+
+/// Analytic Jacobian of Problem::residuals (all parameters), with dRz/dpsi = Rz S(z).
+void jacobian(const Problem& pr, const Eigen::VectorXd& p, Eigen::MatrixXd& jac) {
+  const int m = pr.n_residuals();
+  jac.setZero(m, pr.n_params);
+  const std::size_t K = pr.m_k.size();
+  const int n_dev = pr.n_dev;
+  std::vector<Eigen::Matrix3d> rot(static_cast<std::size_t>(n_dev) * K), drot(static_cast<std::size_t>(n_dev) * K);
+  Eigen::Matrix3d sz;
+  sz << 0, -1, 0, 1, 0, 0, 0, 0, 0;
+  for (int d = 0; d < n_dev; ++d) {
+    const Eigen::Matrix3d rz = rot_z(p[pr.psi_index[d]]);
+    for (std::size_t k = 0; k < K; ++k) {
+      if (pr.x_index[d][k] < 0) continue;
+      rot[static_cast<std::size_t>(d) * K + k] = pr.r1t[d][k] * rz * pr.rd[d][k];
+      drot[static_cast<std::size_t>(d) * K + k] = pr.r1t[d][k] * rz * sz * pr.rd[d][k];
+    }
+  }
+  const int d2 = pr.dev2;
+  auto n_at = [&](std::size_t k) {
+    return Eigen::Vector3d(p.segment<3>(pr.x_index[d2][k]) + rot[static_cast<std::size_t>(d2) * K + k] * *pr.speaker[d2]);
+  };
+  int i = 0;
+  for (const Eq& e : pr.eqs) {
+    const std::size_t k = static_cast<std::size_t>(e.k);
+    const double inv = 1.0 / e.sigma;
+    switch (e.kind) {
+      case Kind::OneHearsN: {
+        const Eigen::Vector3d w = n_at(k) - e.point;
+        const Eigen::Vector3d u = w / std::max(w.norm(), 1e-12);
+        jac.block<1, 3>(i, pr.x_index[d2][k]) += inv * u.transpose();
+        jac(i, pr.psi_index[d2]) += inv * u.dot(drot[static_cast<std::size_t>(d2) * K + k] * *pr.speaker[d2]);
+        jac(i, pr.rho_index[d2][k]) += -inv;
+        break;
+      }
+      case Kind::HearsM:
+      case Kind::HearsN: {
+        const std::size_t dk = static_cast<std::size_t>(e.dev) * K + k;
+        const Eigen::Vector3d target = e.kind == Kind::HearsM ? pr.m_k[k] : n_at(k);
+        const Eigen::Vector3d w = p.segment<3>(pr.x_index[e.dev][k]) + rot[dk] * e.point - target;
+        const Eigen::Vector3d u = w / std::max(w.norm(), 1e-12);
+        jac.block<1, 3>(i, pr.x_index[e.dev][k]) += inv * u.transpose();
+        jac(i, pr.psi_index[e.dev]) += inv * u.dot(drot[dk] * e.point);
+        jac(i, pr.rho_index[e.dev][k]) += inv;
+        if (e.kind == Kind::HearsN) {
+          jac.block<1, 3>(i, pr.x_index[d2][k]) -= inv * u.transpose();
+          jac(i, pr.psi_index[d2]) -= inv * u.dot(drot[static_cast<std::size_t>(d2) * K + k] * *pr.speaker[d2]);
+          jac(i, pr.rho_index[d2][k]) -= inv;
+        }
+        break;
+      }
+    }
+    ++i;
+  }
+  for (int d = 0; d < n_dev; ++d) jac(i++, pr.psi_index[d]) = 1.0 / pr.yaw_sigma;
+  for (int d = 0; d < n_dev; ++d) {
+    int prev = -1;
+    bool done_still = false;
+    for (std::size_t k = 0; k < K; ++k) {
+      if (pr.x_index[d][k] < 0) continue;
+      if (pr.still[d]) {
+        if (done_still) continue;
+        done_still = true;
+      } else if (prev >= 0) {
+        const double dt = std::max(0.05, pr.t_k[k] - pr.t_k[static_cast<std::size_t>(prev)]);
+        const double g = 1.0 / (pr.net.speed_mps * dt);
+        for (int a = 0; a < 3; ++a) {
+          jac(i, pr.x_index[d][k] + a) = g;
+          jac(i, pr.x_index[d][static_cast<std::size_t>(prev)] + a) = -g;
+          ++i;
+        }
+      }
+      prev = static_cast<int>(k);
+      if (pr.net.height_prior_m > 0) {
+        jac.block<1, 3>(i, pr.x_index[d][k]) = pr.up_k[k].transpose() / pr.net.height_prior_m;
+        ++i;
+      }
+    }
+  }
+}
 
 /// Huber weights on the equation residuals (priors keep weight 1).
 void huber(const Eigen::VectorXd& r, int n_eq, double k, Eigen::VectorXd& w) {
@@ -145,16 +241,16 @@ double solve_lm(const Problem& pr, Eigen::VectorXd& p, const std::vector<bool>& 
   Eigen::MatrixXd jac(r.size(), m);
   Eigen::MatrixXd jtj(m, m);
   Eigen::VectorXd jtr(m);
+  Eigen::MatrixXd full;
   auto build = [&] {
-    for (int c = 0; c < m; ++c) {
-      Eigen::VectorXd q = p;
-      const double h = 1e-6;
-      q[cols[static_cast<std::size_t>(c)]] += h;
-      pr.residuals(q, rn);
-      jac.col(c) = (rn - r) / h;
-    }
-    jtj = jac.transpose() * w.asDiagonal() * jac;
-    jtr = jac.transpose() * (w.array() * r.array()).matrix();
+    jacobian(pr, p, full);
+    for (int c = 0; c < m; ++c) jac.col(c) = full.col(cols[static_cast<std::size_t>(c)]);
+    const Eigen::VectorXd sw = w.array().sqrt().matrix();
+    const Eigen::MatrixXd jw = sw.asDiagonal() * jac;
+    jtj.setZero();
+    jtj.selfadjointView<Eigen::Lower>().rankUpdate(jw.transpose());
+    jtj.triangularView<Eigen::StrictlyUpper>() = jtj.transpose();
+    jtr = jw.transpose() * (sw.array() * r.array()).matrix();
   };
   build();
   for (int it = 0; it < iterations; ++it) {
@@ -406,10 +502,10 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
       }
       q = best_local;
     }
-    const double cst = solve_lm(pr, q, all, net_.iterations);
+    const double cst = solve_lm(pr, q, all, candidates.size() > 1 ? 4 : net_.iterations);
     if (cst < best_cost) best_cost = cst, best_p = q;
   }
-  p = best_p;
+  p = best_p;  // the best candidate after a few iterations; the final solve below converges it
   Eigen::MatrixXd info;
   const double cost = solve_lm(pr, p, all, net_.iterations, &info);
 
