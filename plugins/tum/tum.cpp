@@ -86,6 +86,7 @@ class TumLocalizer final : public Localizer {
     net_cfg_.still_yaw_prior_rad = params.get_float("still_yaw_prior_rad");
     net_cfg_.speed_mps = tracker_cfg_.moving_speed_mps;
     std_floor_m_ = params.get_float("std_floor_m");
+    pairing_tolerance_s_ = params.get_float("pairing_tolerance_s");
     debug_ = params.get_bool("log_fixes");
 
     // Geometry of this device (from the scene on replay, from the config's geometry on a node).
@@ -252,7 +253,10 @@ class TumLocalizer final : public Localizer {
     auto second = remote_.find(device2_);
     if (self == remote_.end() || second == remote_.end()) return;
     RemoteDevice& ref = self->second;
-    const double tol = max_spread_m_ / cfg_.speed_of_sound_mps + 0.005;  // clock offset known to the propagation spread
+    // Between exchanges the apparent offset (device tone-1 time minus device 1's) changes only by the
+    // devices' motion over the propagation (a few ms at walking speed), while a wrong pairing is off by
+    // a round period plus the random speaker latencies: a tight tolerance tells them apart.
+    const double tol = pairing_tolerance_s_;
     // Clock pairing: first after kAlignAfter exchanges (fewer let a wrong round shift tie with the
     // right one), then again every kAlignAfter exchanges over the latest ones, switching when another
     // offset pairs more of them.
@@ -274,7 +278,7 @@ class TumLocalizer final : public Localizer {
       int current = 0;
       if (r.offset_s)
         for (const Stamp& st : rs) current += match_stamp(st, ds, *r.offset_s, tol, interval_tolerance_s()) >= 0;
-      if (!r.offset_s || pairs > current) {
+      if (!r.offset_s || (pairs > current + 2 && 2 * pairs > static_cast<int>(std::min(rs.size(), ds.size())))) {
         if (r.offset_s) log_->info("tum: " + id + ": clock pairing moved to another offset (" + std::to_string(pairs) + " vs " +
                                    std::to_string(current) + " exchanges agree)");
         r.offset_s = off;
@@ -407,6 +411,7 @@ class TumLocalizer final : public Localizer {
   NetworkConfig net_cfg_;
   std::optional<NetworkSolver> network_;
   double std_floor_m_ = 0.0;
+  double pairing_tolerance_s_ = 0.006;
   // every instance
   std::vector<Detection> pending_;
   std::deque<AttitudeAt> attitudes_;
@@ -442,6 +447,8 @@ const ParamSchema& schema() {
       float_param("attitude_std_rad", 0.02, 0.0, 1.0, "rad", "Relative attitude error (1 sigma), applied to the mic/speaker lever arms."),
       float_param("max_range_m", 10.0, 0.2, 100.0, "m", "Roots farther from device 1 are dropped."),
       float_param("max_spread_m", 5.0, 0.1, 100.0, "m", "Largest distance between devices (pairs exchanges across clocks)."),
+      float_param("pairing_tolerance_s", 0.006, 0.0005, 1.0, "s",
+                  "Clock pairing: how much a device's apparent clock offset may change between exchanges (motion over the propagation)."),
       float_param("motion_gyro_radps", 0.05, 0.0, 10.0, "rad/s", "Gyro rate above which a device counts as moving."),
       enum_param("filter", "none", {"none", "particle"}, "none: the window solve alone (network.hpp); particle: its fixes of moving devices through the Sec. V filter (tracker.hpp)."),
       int_param("particles", 200, 10, 100000, "", "Particles per tracked device."),
