@@ -509,6 +509,27 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
   Eigen::MatrixXd info;
   const double cost = solve_lm(pr, p, all, net_.iterations, &info);
 
+  // Sec. VIII in the window: the range device 1 - device 2 is what one exchange measures best (the
+  // distance sums, Eq. 3-4). A window whose device 2 disagrees with this exchange's range by more
+  // than `outlier_m` was built on something wrong (an exchange paired across clocks wrongly, a wrong
+  // basin): it is dropped and the solve restarts from this exchange alone.
+  {
+    const Eigen::Vector3d x2 = p.segment<3>(pr.x_index[pr.dev2][newest]);
+    const double range1 = single.devices[1].roots.front().x.norm();
+    if (std::abs(x2.norm() - range1) > net_.outlier_m && !restarting_) {
+      ++restarts_;
+      const Exchange keep = window_.back();
+      window_.clear();
+      state_.clear();
+      moving_x_.clear();
+      restarting_ = true;
+      NetworkResult again = add(keep.devices);
+      restarting_ = false;
+      again.restarted = true;
+      return again;
+    }
+  }
+
   // ---- results ----
   Eigen::VectorXd r;
   pr.residuals(p, r);
@@ -533,6 +554,10 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
     if (any_moving) s.psi_anchor = s.psi;
     const int xi = pr.x_index[d][newest];
     if (xi < 0) continue;  // not in the newest exchange
+    if (!p.segment<3>(xi).allFinite() || p.segment<3>(xi).norm() > cfg_.max_range_m) {
+      s = State{};  // diverged: searched afresh next time, not published
+      continue;
+    }
     s.x = p.segment<3>(xi);
     s.known = true;
     ++s.exchanges;

@@ -40,6 +40,7 @@ struct NetworkConfig {
   double speed_mps = 0.5;          ///< 1-sigma speed of a moving device between exchanges
   double huber_k = 3.0;            ///< Huber threshold, in sigmas
   int iterations = 20;
+  double outlier_m = 0.3;          ///< window vs this exchange's range device 1 - device 2 (restart beyond)
 };
 
 struct NetworkPlacement {
@@ -56,6 +57,7 @@ struct NetworkResult {
   bool ok = false;
   double t_ref_s = 0.0;                   ///< newest exchange's time of validity (device 1 clock)
   double chi2_dof = 0.0;
+  bool restarted = false;                 ///< the window disagreed with this exchange and was restarted
   Eigen::Vector3d up = Eigen::Vector3d::UnitZ();  ///< world up in device 1's body frame (newest exchange)
   std::vector<NetworkPlacement> devices;  ///< device 1 first, then the newest exchange's devices
 };
@@ -85,6 +87,11 @@ class NetworkSolver {
   std::deque<Exchange> window_;
   std::map<std::string, State> state_;
   std::map<std::string, std::deque<Eigen::Vector3d>> moving_x_;  ///< per exchange of the window
+  bool restarting_ = false;
+  std::uint64_t restarts_ = 0;
+
+ public:
+  std::uint64_t restarts() const { return restarts_; }
 };
 
 }  // namespace locus::plugins::tum

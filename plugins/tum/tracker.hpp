@@ -24,7 +24,7 @@ namespace locus::plugins::tum {
 struct TrackerConfig {
   bool filter = true;              ///< false: pass the static fix through
   int particles = 200;
-  double outlier_jump_m = 0.5;
+  double outlier_jump_m = 0.3;
   double moving_speed_mps = 0.5;   ///< 1-sigma speed of a moving device's random walk
   double still_step_m = 0.002;     ///< 1-sigma random walk per exchange of a still device
   double std_floor_m = 0.0;        ///< added (in quadrature) to the reported std

@@ -85,6 +85,7 @@ class TumLocalizer final : public Localizer {
     net_cfg_.height_prior_m = params.get_float("height_prior_m");
     net_cfg_.still_yaw_prior_rad = params.get_float("still_yaw_prior_rad");
     net_cfg_.speed_mps = tracker_cfg_.moving_speed_mps;
+    net_cfg_.outlier_m = tracker_cfg_.outlier_jump_m;
     std_floor_m_ = params.get_float("std_floor_m");
     pairing_tolerance_s_ = params.get_float("pairing_tolerance_s");
     debug_ = params.get_bool("log_fixes");
@@ -174,6 +175,8 @@ class TumLocalizer final : public Localizer {
     close_exchanges(kInf);
     if (reporter_) {
       process(out, true);
+      if (network_ && network_->restarts() > 0)
+        log_->info("tum: " + std::to_string(network_->restarts()) + " window restarts (Sec. VIII: the window disagreed with an exchange)");
       log_->info("tum: " + device_ + ": " + std::to_string(solved_) + " exchanges solved, " + std::to_string(failed_) +
                  " not (" + first_failure_ + "), " + std::to_string(published_) + " estimates");
       for (const auto& [id, r] : remote_)
@@ -452,8 +455,9 @@ const ParamSchema& schema() {
       float_param("motion_gyro_radps", 0.05, 0.0, 10.0, "rad/s", "Gyro rate above which a device counts as moving."),
       enum_param("filter", "none", {"none", "particle"}, "none: the window solve alone (network.hpp); particle: its fixes of moving devices through the Sec. V filter (tracker.hpp)."),
       int_param("particles", 200, 10, 100000, "", "Particles per tracked device."),
-      float_param("outlier_jump_m", 0.5, 0.01, 100.0, "m",
-                  "Sec. VIII: a fix farther than this (plus the motion allowed since the last) from the track is an outlier."),
+      float_param("outlier_jump_m", 0.3, 0.01, 100.0, "m",
+                  "Sec. VIII: a window whose device 2 disagrees with the exchange's own range by more restarts; a filtered fix "
+                  "farther than this (plus the motion allowed) from the track is an outlier."),
       float_param("moving_speed_mps", 0.5, 0.01, 20.0, "m/s", "1-sigma speed of a moving device between exchanges (window smoother and filter)."),
       int_param("window", 12, 1, 200, "", "Exchanges solved together (network solve, network.hpp)."),
       float_param("yaw_prior_rad", 0.35, 0.001, 3.2, "rad", "1-sigma heading error of a device's attitude relative to device 1's (estimated per device)."),
