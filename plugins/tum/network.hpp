@@ -15,7 +15,7 @@
 //             down-weighted, Sec. VIII); weak priors: psi_d ~ N(0, yaw_prior_rad), and every device's
 //             height relative to device 1 ~ N(0, height_prior_m) along device 1's gravity axis (it
 //             only matters where the geometry leaves height unobservable).
-// Levenberg-Marquardt with a numeric Jacobian (a few dozen unknowns), started from the previous
+// Levenberg-Marquardt with an analytic Jacobian (a few dozen unknowns), started from the previous
 // window's solution; a device seen for the first time starts from every root of its single-exchange
 // solution (solver.hpp) and the best is kept. Covariances: (J^T W J)^-1 scaled by the window's
 // chi-square per degree of freedom when that exceeds 1.
