@@ -11,9 +11,10 @@
 //   - keeps its attitude (Attitude events of the `attitude` detector) and a motion flag (ImuSample);
 //   - publishes one ObsMessage per exchange on <topic>/obs/<device> (messages.hpp).
 // Device 1's instance (the reporter) pairs the other devices' exchanges with its own (align_clocks:
-// the clock offset the tone intervals agree on), solves each exchange (solver.hpp: Eq. 2-6 for the
-// working pair, Eq. 17-21 for the monitoring devices, every root kept), runs one particle filter per
-// device (tracker.hpp: Sec. V, outlier rule of Sec. VIII) and publishes one Estimate per device:
+// the clock offset the tone intervals agree on), places every device by a least-squares window over
+// the last exchanges (network.hpp, on top of solver.hpp: Eq. 2-6 for the working pair, Eq. 17-21 for
+// the monitoring devices, every root kept), optionally passes moving devices through the Sec. V
+// particle filter (tracker.hpp, `filter: particle`), and publishes one Estimate per device:
 // reference = device 1, frame "body", t_s = device 1's tone emission on its clock (one snapshot per
 // exchange), position = the device's body origin, std_m, confidence, flags.
 #pragma once
