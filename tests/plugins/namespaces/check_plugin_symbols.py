@@ -28,9 +28,14 @@ def main() -> int:
     seen_folders = set()
     for obj in objects:
         # CMake puts plugins/<folder>/<file>.cpp's object at .../locus_builtins.dir/<folder>/<file>.cpp.o
+        # Only the path below locus_builtins.dir names the folder: a build tree under a directory that
+        # happens to share a plugin's name (a checkout in .../tum/build) must not count as that plugin.
         parts = obj.replace("\\", "/").split("/")
-        folder = next((p for p in reversed(parts[:-1]) if p in folders), None)
-        if folder is None or "locus_builtins.dir" not in parts:
+        if "locus_builtins.dir" not in parts:
+            continue
+        below = parts[len(parts) - 1 - parts[::-1].index("locus_builtins.dir") + 1:-1]
+        folder = next((p for p in below if p in folders), None)
+        if folder is None:
             continue
         seen_folders.add(folder)
         out = subprocess.run(["nm", "-C", "--defined-only", "-g", obj], check=True, capture_output=True, text=True).stdout

@@ -1,0 +1,581 @@
+// TUM network solve over a window of exchanges: see network.hpp.
+#include "network.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace locus::plugins::tum {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+Eigen::Matrix3d rot_z(double psi) {
+  return Eigen::AngleAxisd(psi, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+}
+
+enum class Kind { OneHearsN, HearsM, HearsN };
+
+struct Eq {
+  Kind kind;
+  int k;       ///< exchange in the window
+  int dev;     ///< device index (problem numbering), -1 for device 1
+  Eigen::Vector3d point;  ///< device 1's mic (OneHearsN) or the hearing device's mic, body frame
+  double y;
+  double sigma;
+};
+
+/// The problem over the window: parameter layout, equations, residuals.
+struct Problem {
+  int n_dev = 0;
+  int dev2 = -1;  ///< index of working device 2
+  std::vector<std::string> ids;
+  std::vector<bool> still;
+  std::vector<int> psi_index;
+  std::vector<std::vector<int>> x_index;    ///< [dev][k] (same for every k when still); -1 = absent
+  std::vector<std::vector<int>> rho_index;  ///< [dev][k]; -1 = absent
+  std::vector<std::vector<Eigen::Matrix3d>> r1t;   ///< [dev][k] R1_k^T
+  std::vector<std::vector<Eigen::Matrix3d>> rd;    ///< [dev][k] R_d,k
+  std::vector<std::optional<Eigen::Vector3d>> speaker;  ///< body frame
+  std::vector<Eigen::Vector3d> m_k;                 ///< device 1's speaker (body), per exchange
+  std::vector<Eigen::Vector3d> up_k;                ///< world up in device 1's body frame, per exchange
+  std::vector<double> t_k;
+  std::vector<Eq> eqs;
+  int n_params = 0;
+  NetworkConfig net;
+  std::vector<double> psi_anchor;  ///< prior centre of each heading offset
+  mutable std::vector<Eigen::Matrix3d> rot_cache;  ///< [dev * K + k], per residuals() call
+  mutable std::vector<Eigen::Vector3d> n_cache;    ///< device 2's speaker per exchange
+  double yaw_sigma = 0.35;         ///< prior 1-sigma (loose while something moves, tight when all is still)
+
+  Eigen::Matrix3d rotation(int d, int k, const Eigen::VectorXd& p) const {
+    return r1t[d][k] * rot_z(p[psi_index[d]]) * rd[d][k];
+  }
+  Eigen::Vector3d x_of(int d, int k, const Eigen::VectorXd& p) const {
+    return p.segment<3>(x_index[d][k]);
+  }
+  Eigen::Vector3d n_of(int k, const Eigen::VectorXd& p) const {
+    return x_of(dev2, k, p) + rotation(dev2, k, p) * *speaker[dev2];
+  }
+  int n_residuals() const {
+    int n = static_cast<int>(eqs.size()) + n_dev;  // + yaw priors
+    for (int d = 0; d < n_dev; ++d) {
+      int blocks = 0, prev = -1;
+      for (std::size_t k = 0; k < x_index[d].size(); ++k) {
+        if (x_index[d][k] < 0) continue;
+        if (still[d]) {
+          if (blocks == 0) blocks = 1;
+        } else {
+          ++blocks;
+          if (prev >= 0) n += 3;  // smoothness
+          prev = static_cast<int>(k);
+        }
+      }
+      if (net.height_prior_m > 0) n += blocks;
+    }
+    return n;
+  }
+  /// Whitened residuals; equation residuals first (eqs order), then priors.
+  void residuals(const Eigen::VectorXd& p, Eigen::VectorXd& r) const {
+    r.resize(n_residuals());
+    // Rotations and device 2's speaker, once per device and exchange.
+    const std::size_t K = m_k.size();
+    rot_cache.resize(static_cast<std::size_t>(n_dev) * K);
+    n_cache.resize(K);
+    for (int d = 0; d < n_dev; ++d) {
+      const Eigen::Matrix3d rz = rot_z(p[psi_index[d]]);
+      for (std::size_t k = 0; k < K; ++k)
+        if (x_index[d][k] >= 0) rot_cache[static_cast<std::size_t>(d) * K + k] = r1t[d][k] * rz * rd[d][k];
+    }
+    for (std::size_t k = 0; k < K; ++k)
+      if (x_index[dev2][k] >= 0)
+        n_cache[k] = p.segment<3>(x_index[dev2][k]) + rot_cache[static_cast<std::size_t>(dev2) * K + k] * *speaker[dev2];
+    int i = 0;
+    for (const Eq& e : eqs) {
+      double v = 0.0;
+      const std::size_t k = static_cast<std::size_t>(e.k);
+      switch (e.kind) {
+        case Kind::OneHearsN:
+          v = (e.point - n_cache[k]).norm() - p[rho_index[dev2][e.k]] - e.y;
+          break;
+        case Kind::HearsM:
+          v = (x_of(e.dev, e.k, p) + rot_cache[static_cast<std::size_t>(e.dev) * K + k] * e.point - m_k[k]).norm() +
+              p[rho_index[e.dev][e.k]] - e.y;
+          break;
+        case Kind::HearsN:
+          v = (x_of(e.dev, e.k, p) + rot_cache[static_cast<std::size_t>(e.dev) * K + k] * e.point - n_cache[k]).norm() +
+              p[rho_index[e.dev][e.k]] - p[rho_index[dev2][e.k]] - e.y;
+          break;
+      }
+      r[i++] = v / e.sigma;
+    }
+    for (int d = 0; d < n_dev; ++d) r[i++] = (p[psi_index[d]] - psi_anchor[d]) / yaw_sigma;
+    for (int d = 0; d < n_dev; ++d) {
+      int prev = -1;
+      bool done_still = false;
+      for (std::size_t k = 0; k < x_index[d].size(); ++k) {
+        if (x_index[d][k] < 0) continue;
+        const Eigen::Vector3d x = p.segment<3>(x_index[d][k]);
+        if (still[d]) {
+          if (done_still) continue;
+          done_still = true;
+        } else if (prev >= 0) {
+          const double dt = std::max(0.05, t_k[k] - t_k[static_cast<std::size_t>(prev)]);
+          const Eigen::Vector3d dx = (x - p.segment<3>(x_index[d][static_cast<std::size_t>(prev)])) / (net.speed_mps * dt);
+          r[i++] = dx[0], r[i++] = dx[1], r[i++] = dx[2];
+        }
+        prev = static_cast<int>(k);
+        if (net.height_prior_m > 0) r[i++] = up_k[k].dot(x) / net.height_prior_m;
+      }
+    }
+  }
+};
+
+/// Analytic Jacobian of Problem::residuals (all parameters), with dRz/dpsi = Rz S(z).
+void jacobian(const Problem& pr, const Eigen::VectorXd& p, Eigen::MatrixXd& jac) {
+  const int m = pr.n_residuals();
+  jac.setZero(m, pr.n_params);
+  const std::size_t K = pr.m_k.size();
+  const int n_dev = pr.n_dev;
+  std::vector<Eigen::Matrix3d> rot(static_cast<std::size_t>(n_dev) * K), drot(static_cast<std::size_t>(n_dev) * K);
+  Eigen::Matrix3d sz;
+  sz << 0, -1, 0, 1, 0, 0, 0, 0, 0;
+  for (int d = 0; d < n_dev; ++d) {
+    const Eigen::Matrix3d rz = rot_z(p[pr.psi_index[d]]);
+    for (std::size_t k = 0; k < K; ++k) {
+      if (pr.x_index[d][k] < 0) continue;
+      rot[static_cast<std::size_t>(d) * K + k] = pr.r1t[d][k] * rz * pr.rd[d][k];
+      drot[static_cast<std::size_t>(d) * K + k] = pr.r1t[d][k] * rz * sz * pr.rd[d][k];
+    }
+  }
+  const int d2 = pr.dev2;
+  auto n_at = [&](std::size_t k) {
+    return Eigen::Vector3d(p.segment<3>(pr.x_index[d2][k]) + rot[static_cast<std::size_t>(d2) * K + k] * *pr.speaker[d2]);
+  };
+  int i = 0;
+  for (const Eq& e : pr.eqs) {
+    const std::size_t k = static_cast<std::size_t>(e.k);
+    const double inv = 1.0 / e.sigma;
+    switch (e.kind) {
+      case Kind::OneHearsN: {
+        const Eigen::Vector3d w = n_at(k) - e.point;
+        const Eigen::Vector3d u = w / std::max(w.norm(), 1e-12);
+        jac.block<1, 3>(i, pr.x_index[d2][k]) += inv * u.transpose();
+        jac(i, pr.psi_index[d2]) += inv * u.dot(drot[static_cast<std::size_t>(d2) * K + k] * *pr.speaker[d2]);
+        jac(i, pr.rho_index[d2][k]) += -inv;
+        break;
+      }
+      case Kind::HearsM:
+      case Kind::HearsN: {
+        const std::size_t dk = static_cast<std::size_t>(e.dev) * K + k;
+        const Eigen::Vector3d target = e.kind == Kind::HearsM ? pr.m_k[k] : n_at(k);
+        const Eigen::Vector3d w = p.segment<3>(pr.x_index[e.dev][k]) + rot[dk] * e.point - target;
+        const Eigen::Vector3d u = w / std::max(w.norm(), 1e-12);
+        jac.block<1, 3>(i, pr.x_index[e.dev][k]) += inv * u.transpose();
+        jac(i, pr.psi_index[e.dev]) += inv * u.dot(drot[dk] * e.point);
+        jac(i, pr.rho_index[e.dev][k]) += inv;
+        if (e.kind == Kind::HearsN) {
+          jac.block<1, 3>(i, pr.x_index[d2][k]) -= inv * u.transpose();
+          jac(i, pr.psi_index[d2]) -= inv * u.dot(drot[static_cast<std::size_t>(d2) * K + k] * *pr.speaker[d2]);
+          jac(i, pr.rho_index[d2][k]) -= inv;
+        }
+        break;
+      }
+    }
+    ++i;
+  }
+  for (int d = 0; d < n_dev; ++d) jac(i++, pr.psi_index[d]) = 1.0 / pr.yaw_sigma;
+  for (int d = 0; d < n_dev; ++d) {
+    int prev = -1;
+    bool done_still = false;
+    for (std::size_t k = 0; k < K; ++k) {
+      if (pr.x_index[d][k] < 0) continue;
+      if (pr.still[d]) {
+        if (done_still) continue;
+        done_still = true;
+      } else if (prev >= 0) {
+        const double dt = std::max(0.05, pr.t_k[k] - pr.t_k[static_cast<std::size_t>(prev)]);
+        const double g = 1.0 / (pr.net.speed_mps * dt);
+        for (int a = 0; a < 3; ++a) {
+          jac(i, pr.x_index[d][k] + a) = g;
+          jac(i, pr.x_index[d][static_cast<std::size_t>(prev)] + a) = -g;
+          ++i;
+        }
+      }
+      prev = static_cast<int>(k);
+      if (pr.net.height_prior_m > 0) {
+        jac.block<1, 3>(i, pr.x_index[d][k]) = pr.up_k[k].transpose() / pr.net.height_prior_m;
+        ++i;
+      }
+    }
+  }
+}
+
+/// Huber weights on the equation residuals (priors keep weight 1).
+void huber(const Eigen::VectorXd& r, int n_eq, double k, Eigen::VectorXd& w) {
+  w.setOnes(r.size());
+  for (int i = 0; i < n_eq; ++i) {
+    const double a = std::abs(r[i]);
+    if (a > k) w[i] = k / a;
+  }
+}
+
+double weighted_cost(const Eigen::VectorXd& r, const Eigen::VectorXd& w) {
+  return (r.array().square() * w.array()).sum();
+}
+
+/// Levenberg-Marquardt over the parameters flagged in `free_mask`. Returns the final cost.
+double solve_lm(const Problem& pr, Eigen::VectorXd& p, const std::vector<bool>& free_mask, int iterations,
+                Eigen::MatrixXd* info_out = nullptr) {
+  const int n_eq = static_cast<int>(pr.eqs.size());
+  std::vector<int> cols;
+  for (int j = 0; j < pr.n_params; ++j)
+    if (free_mask[static_cast<std::size_t>(j)]) cols.push_back(j);
+  const int m = static_cast<int>(cols.size());
+  Eigen::VectorXd r, rn, w;
+  pr.residuals(p, r);
+  huber(r, n_eq, pr.net.huber_k, w);
+  double cost = weighted_cost(r, w);
+  double lambda = 1e-3;
+  Eigen::MatrixXd jac(r.size(), m);
+  Eigen::MatrixXd jtj(m, m);
+  Eigen::VectorXd jtr(m);
+  Eigen::MatrixXd full;
+  auto build = [&] {
+    jacobian(pr, p, full);
+    for (int c = 0; c < m; ++c) jac.col(c) = full.col(cols[static_cast<std::size_t>(c)]);
+    const Eigen::VectorXd sw = w.array().sqrt().matrix();
+    const Eigen::MatrixXd jw = sw.asDiagonal() * jac;
+    jtj.setZero();
+    jtj.selfadjointView<Eigen::Lower>().rankUpdate(jw.transpose());
+    jtj.triangularView<Eigen::StrictlyUpper>() = jtj.transpose();
+    jtr = jw.transpose() * (sw.array() * r.array()).matrix();
+  };
+  build();
+  for (int it = 0; it < iterations; ++it) {
+    bool improved = false;
+    for (int tries = 0; tries < 6 && !improved; ++tries) {
+      Eigen::MatrixXd a = jtj;
+      for (int c = 0; c < m; ++c) a(c, c) += lambda * std::max(jtj(c, c), 1e-9);
+      const Eigen::VectorXd step = a.ldlt().solve(-jtr);
+      if (!step.allFinite()) break;
+      Eigen::VectorXd q = p;
+      for (int c = 0; c < m; ++c) q[cols[static_cast<std::size_t>(c)]] += step[c];
+      pr.residuals(q, rn);
+      const double cn = weighted_cost(rn, w);
+      if (cn < cost) {
+        const bool tiny = step.norm() < 1e-7 || cost - cn < 1e-9 * cost;
+        p = q;
+        r = rn;
+        huber(r, n_eq, pr.net.huber_k, w);
+        cost = weighted_cost(r, w);
+        lambda = std::max(lambda * 0.3, 1e-9);
+        improved = true;
+        build();
+        if (tiny) it = iterations;
+      } else {
+        lambda *= 10.0;
+      }
+    }
+    if (!improved) break;
+  }
+  if (info_out) {
+    info_out->setZero(pr.n_params, pr.n_params);
+    for (int a = 0; a < m; ++a)
+      for (int b = 0; b < m; ++b) (*info_out)(cols[static_cast<std::size_t>(a)], cols[static_cast<std::size_t>(b)]) = jtj(a, b);
+  }
+  return cost;
+}
+
+}  // namespace
+
+NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
+  NetworkResult out;
+  if (devices.size() < 2) return out;
+  const double c = cfg_.speed_of_sound_mps;
+  Exchange ex;
+  ex.devices = devices;
+  ex.t_m1 = own_emission_time(devices[0], devices[0].t1_s, c);
+  ex.t_n2 = own_emission_time(devices[1], devices[1].t2_s, c);
+  ex.t_ref = ex.t_m1;
+  if (!std::isfinite(ex.t_m1) || !std::isfinite(ex.t_n2) || !devices[0].attitude || !devices[1].attitude ||
+      !devices[0].speaker || !devices[1].speaker)
+    return out;
+
+  // Single-exchange roots of the working pair (solver.hpp): candidates for device 2's new position.
+  const ExchangeResult single = solve_exchange({devices[0], devices[1]}, cfg_);
+  if (single.devices.size() < 2 || !single.devices[1].ok) return out;
+
+  window_.push_back(ex);
+  for (auto& [id, xs] : moving_x_) xs.push_back(Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+  while (static_cast<int>(window_.size()) > std::max(1, net_.window)) {
+    window_.pop_front();
+    for (auto& [id, xs] : moving_x_)
+      if (!xs.empty()) xs.pop_front();
+  }
+  const int K = static_cast<int>(window_.size());
+  const int newest = K - 1;
+
+  // ---- layout ----
+  Problem pr;
+  pr.net = net_;
+  const std::string id1 = devices[0].id;
+  std::map<std::string, int> index;
+  for (const Exchange& e : window_)
+    for (std::size_t i = 1; i < e.devices.size(); ++i) {
+      const DeviceExchange& d = e.devices[i];
+      if (!d.attitude || d.id == id1) continue;
+      if (!index.count(d.id)) {
+        index[d.id] = pr.n_dev++;
+        pr.ids.push_back(d.id);
+      }
+    }
+  if (!index.count(devices[1].id)) return out;
+  pr.dev2 = index[devices[1].id];
+  pr.still.assign(static_cast<std::size_t>(pr.n_dev), true);
+  pr.x_index.assign(static_cast<std::size_t>(pr.n_dev), std::vector<int>(static_cast<std::size_t>(K), -1));
+  pr.rho_index = pr.x_index;
+  pr.r1t.assign(static_cast<std::size_t>(pr.n_dev), std::vector<Eigen::Matrix3d>(static_cast<std::size_t>(K), Eigen::Matrix3d::Identity()));
+  pr.rd = pr.r1t;
+  pr.speaker.assign(static_cast<std::size_t>(pr.n_dev), std::nullopt);
+  std::vector<std::vector<const DeviceExchange*>> obs(static_cast<std::size_t>(pr.n_dev),
+                                                      std::vector<const DeviceExchange*>(static_cast<std::size_t>(K), nullptr));
+  for (int k = 0; k < K; ++k) {
+    const Exchange& e = window_[static_cast<std::size_t>(k)];
+    const Eigen::Matrix3d r1 = e.devices[0].attitude->toRotationMatrix();
+    pr.m_k.push_back(*e.devices[0].speaker);
+    pr.up_k.push_back(r1.transpose() * Eigen::Vector3d::UnitZ());
+    pr.t_k.push_back(e.t_ref);
+    for (std::size_t i = 1; i < e.devices.size(); ++i) {
+      const DeviceExchange& d = e.devices[i];
+      if (!d.attitude || d.id == id1) continue;
+      const int di = index[d.id];
+      obs[static_cast<std::size_t>(di)][static_cast<std::size_t>(k)] = &d;
+      pr.r1t[di][k] = r1.transpose();
+      pr.rd[di][k] = d.attitude->toRotationMatrix();
+      if (d.speaker) pr.speaker[di] = d.speaker;
+      if (d.moving) pr.still[di] = false;
+    }
+  }
+  if (!pr.speaker[pr.dev2]) return out;
+  // Heading offsets are observable only while the geometry changes (a device moves): with every device
+  // still, each exchange repeats the same constraints and the offsets trade against positions. Then
+  // they keep what motion taught them (psi_anchor), held by the attitude's own accuracy.
+  const bool any_moving = std::find(pr.still.begin(), pr.still.end(), false) != pr.still.end();
+  pr.yaw_sigma = any_moving ? net_.yaw_prior_rad : net_.still_yaw_prior_rad;
+  for (int d = 0; d < pr.n_dev; ++d) pr.psi_anchor.push_back(any_moving ? 0.0 : state_[pr.ids[d]].psi_anchor);
+  int np = 0;
+  for (int d = 0; d < pr.n_dev; ++d) {
+    pr.psi_index.push_back(np++);
+    int shared = -1;
+    for (int k = 0; k < K; ++k) {
+      if (!obs[d][k]) continue;
+      if (pr.still[d]) {
+        if (shared < 0) shared = np, np += 3;
+        pr.x_index[d][k] = shared;
+      } else {
+        pr.x_index[d][k] = np;
+        np += 3;
+      }
+      pr.rho_index[d][k] = np++;
+    }
+  }
+  pr.n_params = np;
+
+  // ---- equations ----
+  const double timing_m = c * cfg_.timing_std_s;
+  auto sigma_for = [&](const Eigen::Vector3d& lever) {
+    const double a = lever.norm() * cfg_.attitude_std_rad;
+    return std::sqrt(timing_m * timing_m + a * a);
+  };
+  for (int k = 0; k < K; ++k) {
+    const Exchange& e = window_[static_cast<std::size_t>(k)];
+    const DeviceExchange& d1 = e.devices[0];
+    if (obs[pr.dev2][k]) {
+      for (std::size_t a = 0; a < d1.mics.size() && a < d1.t2_s.size(); ++a) {
+        if (!std::isfinite(d1.t2_s[a])) continue;
+        pr.eqs.push_back(Eq{Kind::OneHearsN, k, pr.dev2, d1.mics[a], c * (d1.t2_s[a] - e.t_n2), sigma_for(*pr.speaker[pr.dev2])});
+      }
+    }
+    for (int d = 0; d < pr.n_dev; ++d) {
+      const DeviceExchange* o = obs[d][k];
+      if (!o) continue;
+      for (std::size_t j = 0; j < o->mics.size(); ++j) {
+        if (j < o->t1_s.size() && std::isfinite(o->t1_s[j]))
+          pr.eqs.push_back(Eq{Kind::HearsM, k, d, o->mics[j], c * (o->t1_s[j] - e.t_m1), sigma_for(o->mics[j])});
+        if (d != pr.dev2 && obs[pr.dev2][k] && j < o->t2_s.size() && std::isfinite(o->t2_s[j]))
+          pr.eqs.push_back(Eq{Kind::HearsN, k, d, o->mics[j], c * (o->t2_s[j] - e.t_n2),
+                              std::sqrt(2.0) * sigma_for(o->mics[j])});
+      }
+    }
+  }
+
+  // ---- initial values ----
+  Eigen::VectorXd p = Eigen::VectorXd::Zero(np);
+  std::vector<bool> known(static_cast<std::size_t>(pr.n_dev), false);
+  for (int d = 0; d < pr.n_dev; ++d) {
+    const State& s = state_[pr.ids[d]];
+    p[pr.psi_index[d]] = s.psi;
+    auto& xs = moving_x_[pr.ids[d]];
+    xs.resize(static_cast<std::size_t>(K), Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+    for (int k = 0; k < K; ++k) {
+      if (pr.x_index[d][k] < 0) continue;
+      Eigen::Vector3d x = s.x;
+      if (!pr.still[d] && xs[static_cast<std::size_t>(k)].allFinite()) x = xs[static_cast<std::size_t>(k)];
+      p.segment<3>(pr.x_index[d][k]) = x;
+    }
+    known[static_cast<std::size_t>(d)] = s.known;
+  }
+  auto init_rho = [&](Eigen::VectorXd& q) {
+    for (int d = 0; d < pr.n_dev; ++d)
+      for (int k = 0; k < K; ++k) {
+        if (pr.rho_index[d][k] < 0) continue;
+        double sum = 0.0;
+        int n = 0;
+        for (const Eq& e : pr.eqs)
+          if (e.kind == Kind::HearsM && e.dev == d && e.k == k) {
+            sum += e.y - (pr.x_of(d, k, q) + pr.rotation(d, k, q) * e.point - pr.m_k[k]).norm();
+            ++n;
+          }
+        if (n) q[pr.rho_index[d][k]] = sum / n;
+      }
+  };
+  std::vector<bool> all(static_cast<std::size_t>(np), true);
+
+  // Device 2's newest position: every root of the single-exchange solve is a candidate (Sec. IV-B:
+  // the roots are kept; the window decides).
+  std::vector<Eigen::Vector3d> candidates;
+  const bool dev2_known = known[static_cast<std::size_t>(pr.dev2)];
+  if (pr.still[pr.dev2] && dev2_known) {
+    candidates.push_back(p.segment<3>(pr.x_index[pr.dev2][newest]));
+  } else {
+    for (std::size_t i = 0; i < single.devices[1].roots.size() && i < 4; ++i) candidates.push_back(single.devices[1].roots[i].x);
+  }
+  Eigen::VectorXd best_p = p;
+  double best_cost = kInf;
+  for (const Eigen::Vector3d& cand : candidates) {
+    Eigen::VectorXd q = p;
+    q.segment<3>(pr.x_index[pr.dev2][newest]) = cand;
+    for (int k = 0; k < K; ++k)
+      if (pr.x_index[pr.dev2][k] >= 0 && (!dev2_known || !moving_x_[pr.ids[pr.dev2]][static_cast<std::size_t>(k)].allFinite()))
+        q.segment<3>(pr.x_index[pr.dev2][k]) = cand;
+    init_rho(q);
+    // Unknown monitors: multi-start on their own parameters with the rest fixed.
+    for (int d = 0; d < pr.n_dev; ++d) {
+      // A device seen for the first time, and every device while the window fills (one exchange leaves
+      // a monitor nearly unobservable: its first basin may be wrong), is searched from many starts; a
+      // known device's current solution is one of them.
+      const bool warmup = K < net_.window || state_[pr.ids[d]].exchanges < net_.window;
+      if (d == pr.dev2 || (known[static_cast<std::size_t>(d)] && !warmup)) continue;
+      std::vector<bool> mask(static_cast<std::size_t>(np), false);
+      mask[static_cast<std::size_t>(pr.psi_index[d])] = true;
+      for (int k = 0; k < K; ++k) {
+        if (pr.x_index[d][k] >= 0) mask[static_cast<std::size_t>(pr.x_index[d][k])] = mask[static_cast<std::size_t>(pr.x_index[d][k] + 1)] =
+            mask[static_cast<std::size_t>(pr.x_index[d][k] + 2)] = true;
+        if (pr.rho_index[d][k] >= 0) mask[static_cast<std::size_t>(pr.rho_index[d][k])] = true;
+      }
+      const Eigen::Vector3d centre = 0.5 * (pr.m_k[newest] + pr.n_of(newest, q));
+      Eigen::VectorXd best_local = q;
+      double best_local_cost = kInf;
+      const int n_dir = 26;
+      const double golden = M_PI * (3.0 - std::sqrt(5.0));
+      if (known[static_cast<std::size_t>(d)]) {
+        Eigen::VectorXd t = q;
+        init_rho(t);
+        best_local_cost = solve_lm(pr, t, mask, 15);
+        best_local = t;
+      }
+      for (double radius : {0.7, 1.5, 2.5}) {
+        for (int i = 0; i < n_dir; ++i) {
+          const double z = 1.0 - 2.0 * (i + 0.5) / n_dir;
+          const double rr = std::sqrt(std::max(0.0, 1.0 - z * z));
+          const Eigen::Vector3d x0 = centre + radius * Eigen::Vector3d(rr * std::cos(golden * i), rr * std::sin(golden * i), z);
+          Eigen::VectorXd t = q;
+          t[pr.psi_index[d]] = 0.0;
+          for (int k = 0; k < K; ++k)
+            if (pr.x_index[d][k] >= 0) t.segment<3>(pr.x_index[d][k]) = x0;
+          init_rho(t);
+          const double cst = solve_lm(pr, t, mask, 15);
+          if (cst < best_local_cost) best_local_cost = cst, best_local = t;
+        }
+      }
+      q = best_local;
+    }
+    const double cst = solve_lm(pr, q, all, candidates.size() > 1 ? 4 : net_.iterations);
+    if (cst < best_cost) best_cost = cst, best_p = q;
+  }
+  p = best_p;  // the best candidate after a few iterations; the final solve below converges it
+  Eigen::MatrixXd info;
+  const double cost = solve_lm(pr, p, all, net_.iterations, &info);
+
+  // Sec. VIII in the window: the range device 1 - device 2 is what one exchange measures best (the
+  // distance sums, Eq. 3-4). A window whose device 2 disagrees with this exchange's range by more
+  // than `outlier_m` was built on something wrong (an exchange paired across clocks wrongly, a wrong
+  // basin): it is dropped and the solve restarts from this exchange alone.
+  {
+    const Eigen::Vector3d x2 = p.segment<3>(pr.x_index[pr.dev2][newest]);
+    const double range1 = single.devices[1].roots.front().x.norm();
+    if (std::abs(x2.norm() - range1) > net_.outlier_m && !restarting_) {
+      ++restarts_;
+      const Exchange keep = window_.back();
+      window_.clear();
+      state_.clear();
+      moving_x_.clear();
+      restarting_ = true;
+      NetworkResult again = add(keep.devices);
+      restarting_ = false;
+      again.restarted = true;
+      return again;
+    }
+  }
+
+  // ---- results ----
+  Eigen::VectorXd r;
+  pr.residuals(p, r);
+  const int dof = std::max(1, static_cast<int>(r.size()) - np);
+  out.chi2_dof = cost / dof;
+  const double scale = std::max(1.0, out.chi2_dof);
+  Eigen::FullPivLU<Eigen::MatrixXd> lu(info);
+  Eigen::MatrixXd cov = lu.rank() == np ? Eigen::MatrixXd(lu.inverse()) : Eigen::MatrixXd::Identity(np, np) * kInf;
+  out.ok = true;
+  out.t_ref_s = ex.t_ref;
+  out.up = pr.up_k[static_cast<std::size_t>(newest)];
+  NetworkPlacement p1;
+  p1.id = id1;
+  p1.ok = true;
+  out.devices.push_back(p1);
+  for (int d = 0; d < pr.n_dev; ++d) {
+    State& s = state_[pr.ids[d]];
+    auto& xs = moving_x_[pr.ids[d]];
+    for (int k = 0; k < K; ++k)
+      if (pr.x_index[d][k] >= 0) xs[static_cast<std::size_t>(k)] = p.segment<3>(pr.x_index[d][k]);
+    s.psi = p[pr.psi_index[d]];
+    if (any_moving) s.psi_anchor = s.psi;
+    const int xi = pr.x_index[d][newest];
+    if (xi < 0) continue;  // not in the newest exchange
+    if (!p.segment<3>(xi).allFinite() || p.segment<3>(xi).norm() > cfg_.max_range_m) {
+      s = State{};  // diverged: searched afresh next time, not published
+      continue;
+    }
+    s.x = p.segment<3>(xi);
+    s.known = true;
+    ++s.exchanges;
+    NetworkPlacement np_;
+    np_.id = pr.ids[d];
+    np_.ok = true;
+    np_.still = pr.still[d];
+    np_.origin = s.x;
+    np_.cov = cov.block<3, 3>(xi, xi) * scale;
+    np_.yaw_offset_rad = s.psi;
+    double sum = 0.0;
+    int n = 0;
+    for (std::size_t i = 0; i < pr.eqs.size(); ++i)
+      if (pr.eqs[i].k == newest && (pr.eqs[i].dev == d)) sum += r[static_cast<Eigen::Index>(i)] * r[static_cast<Eigen::Index>(i)], ++n;
+    np_.rms_sigma = n ? std::sqrt(sum / n) : 0.0;
+    out.devices.push_back(np_);
+  }
+  return out;
+}
+
+}  // namespace locus::plugins::tum

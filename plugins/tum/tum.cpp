@@ -1,0 +1,482 @@
+// The `tum` localizer: exchange bookkeeping, link plumbing, estimates. See tum.hpp for the design and
+// docs/tum.md for the user's view; the maths lives in solver.cpp and tracker.cpp.
+#include "tum.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <limits>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "messages.hpp"
+#include "network.hpp"
+#include "solver.hpp"
+#include "tracker.hpp"
+
+namespace locus::plugins::tum {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kNaNd = std::numeric_limits<double>::quiet_NaN();
+
+struct Detection {
+  double t_s = 0.0;
+  int tone = 0;  ///< 1 or 2
+  std::uint32_t channel = 0;
+  float snr_db = 0.0f;
+};
+
+struct RemoteDevice {
+  std::vector<DeviceExchange> exchanges;
+  std::vector<Stamp> stamps;
+  std::optional<double> offset_s;    ///< its clock minus device 1's, once aligned
+  std::deque<double> recent_offsets;
+  std::size_t aligned_at = 0;        ///< device 1's exchange count at the last pairing search
+};
+
+DeviceExchange to_exchange(const ObsMessage& m) {
+  DeviceExchange d;
+  d.id = m.device;
+  for (const auto& v : m.mics_m) d.mics.emplace_back(v[0], v[1], v[2]);
+  if (m.speaker_m) d.speaker = Eigen::Vector3d((*m.speaker_m)[0], (*m.speaker_m)[1], (*m.speaker_m)[2]);
+  if (m.q_wxyz) d.attitude = Eigen::Quaterniond((*m.q_wxyz)[0], (*m.q_wxyz)[1], (*m.q_wxyz)[2], (*m.q_wxyz)[3]).normalized();
+  d.moving = m.moving;
+  d.t1_s = m.t1_s;
+  d.t2_s = m.t2_s;
+  return d;
+}
+
+class TumLocalizer final : public Localizer {
+ public:
+  ~TumLocalizer() override {
+    if (link_ != nullptr) link_->unsubscribe(subscription_);
+  }
+
+  /// [main]
+  void configure(const Params& params, HostContext& ctx) override {
+    log_ = &ctx.log;
+    link_ = &ctx.link;
+    instance_ = std::string(ctx.instance);
+    device_ = !ctx.device.empty() ? std::string(ctx.device) : params.get_string("device");
+    prefix_ = params.get_string("topic");
+    if (prefix_.empty() || prefix_.find_first_of("+#") != std::string::npos || prefix_.back() == '/')
+      throw std::runtime_error("tum: param 'topic': expected a non-empty topic prefix without '+', '#' or a trailing '/', got '" +
+                               prefix_ + "'");
+    detector_ = params.get_string("detector");
+    pair_window_s_ = params.get_float("pair_window_s");
+    cfg_.speed_of_sound_mps = params.get_float("speed_of_sound_mps");
+    calibrate_c_ = cfg_.speed_of_sound_mps == 0.0;
+    if (calibrate_c_) cfg_.speed_of_sound_mps = 343.2;
+    cfg_.timing_std_s = params.get_float("timing_std_s");
+    cfg_.attitude_std_rad = params.get_float("attitude_std_rad");
+    cfg_.max_range_m = params.get_float("max_range_m");
+    max_spread_m_ = params.get_float("max_spread_m");
+    motion_gyro_radps_ = params.get_float("motion_gyro_radps");
+    tracker_cfg_.filter = params.get_string("filter") == "particle";
+    tracker_cfg_.particles = static_cast<int>(params.get_int("particles"));
+    tracker_cfg_.outlier_jump_m = params.get_float("outlier_jump_m");
+    tracker_cfg_.moving_speed_mps = params.get_float("moving_speed_mps");
+    net_cfg_.window = static_cast<int>(params.get_int("window"));
+    net_cfg_.yaw_prior_rad = params.get_float("yaw_prior_rad");
+    net_cfg_.height_prior_m = params.get_float("height_prior_m");
+    net_cfg_.still_yaw_prior_rad = params.get_float("still_yaw_prior_rad");
+    net_cfg_.speed_mps = tracker_cfg_.moving_speed_mps;
+    net_cfg_.outlier_m = tracker_cfg_.outlier_jump_m;
+    std_floor_m_ = params.get_float("std_floor_m");
+    pairing_tolerance_s_ = params.get_float("pairing_tolerance_s");
+    debug_ = params.get_bool("log_fixes");
+
+    // Geometry of this device (from the scene on replay, from the config's geometry on a node).
+    if (ctx.geometry != nullptr) {
+      for (std::uint32_t k = 0; k < ctx.geometry->mic_count; ++k) mics_.push_back(ctx.geometry->mics_m[k]);
+      if (ctx.geometry->has_speaker) speaker_ = ctx.geometry->speaker_m;
+    }
+
+    // The working pair and the template index of each tone: the scene's distinct lfm signals in scene
+    // order, as the chirp detector numbers them with `from_scene`.
+    std::string w1 = params.get_string("device1"), w2 = params.get_string("device2");
+    template1_ = static_cast<int>(params.get_int("template1"));
+    template2_ = static_cast<int>(params.get_int("template2"));
+    if (ctx.geometry != nullptr && !ctx.geometry->scene_emits.empty()) {
+      std::vector<const SignalSpec*> lfms;
+      std::vector<std::string> emitters;  // emitters of lfm signals, scene order, distinct
+      for (const SceneSignal& s : ctx.geometry->scene_emits) {
+        if (s.signal.type != "lfm") continue;
+        int index = -1;
+        for (std::size_t t = 0; t < lfms.size(); ++t) {
+          const SignalSpec& o = *lfms[t];
+          if (o.f0_hz == s.signal.f0_hz && o.f1_hz == s.signal.f1_hz && o.duration_s == s.signal.duration_s &&
+              o.fade_s == s.signal.fade_s)
+            index = static_cast<int>(t);
+        }
+        if (index < 0) {
+          index = static_cast<int>(lfms.size());
+          lfms.push_back(&s.signal);
+        }
+        if (std::find(emitters.begin(), emitters.end(), s.id) == emitters.end()) {
+          emitters.push_back(s.id);
+          template_of_[s.id] = index;
+        }
+      }
+      if (w1.empty() && emitters.size() >= 1) w1 = emitters[0];
+      if (w2.empty() && emitters.size() >= 2) w2 = emitters[1];
+      if (template_of_.count(w1)) template1_ = template_of_[w1];
+      if (template_of_.count(w2)) template2_ = template_of_[w2];
+    }
+    if (w1.empty() || w2.empty() || w1 == w2)
+      throw std::runtime_error("tum: cannot tell the two working devices: the scene declares " +
+                               std::string(w1.empty() ? "no" : "one") +
+                               " emitting device; set params device1 and device2 (and template1, template2)");
+    if (template1_ == template2_)
+      throw std::runtime_error("tum: the working devices " + w1 + " and " + w2 +
+                               " emit the same signal; TUM needs two distinguishable tones (docs/tum.md)");
+    device1_ = w1;
+    device2_ = w2;
+    reporter_ = device_ == device1_;
+
+    subscription_ = ctx.link.subscribe(topic_filter(prefix_), [this](const LinkMessage& m) { on_message(m); });
+  }
+
+  /// [main]
+  std::vector<EventType> subscriptions() const override {
+    return {EventType::AudioDetection, EventType::Attitude, EventType::ImuSample};
+  }
+
+  /// [main]
+  void on_event(const Event& event, Publisher& out) override {
+    if (const auto* d = std::get_if<AudioDetection>(&event)) {
+      if (d->device.view() != device_ || !(d->sample_rate_hz > 0)) return;
+      if (!detector_.empty() && d->detector.view() != detector_ && d->detector.view() != detector_ + "_" + device_) return;
+      const int tone = d->template_index == template1_ ? 1 : d->template_index == template2_ ? 2 : 0;
+      if (tone == 0 || d->channel >= mics_.size()) return;
+      const double t = d->frame / d->sample_rate_hz;
+      close_exchanges(t);
+      pending_.push_back(Detection{t, tone, d->channel, d->snr_db});
+    } else if (const auto* a = std::get_if<Attitude>(&event)) {
+      if (a->device.view() != device_) return;
+      attitudes_.push_back({a->t_s, {a->q_wxyz[0], a->q_wxyz[1], a->q_wxyz[2], a->q_wxyz[3]}});
+      while (attitudes_.size() > 256) attitudes_.pop_front();
+    } else if (const auto* s = std::get_if<ImuSample>(&event)) {
+      if (s->device.view() != device_) return;
+      const double g = std::sqrt(double(s->gyro_radps[0]) * s->gyro_radps[0] + double(s->gyro_radps[1]) * s->gyro_radps[1] +
+                                 double(s->gyro_radps[2]) * s->gyro_radps[2]);
+      motion_.push_back({s->t_s, g > motion_gyro_radps_});
+      while (motion_.size() > 4096) motion_.pop_front();
+    }
+    if (reporter_) process(out, false);
+  }
+
+  /// [main] All inputs ended.
+  void finish(Publisher& out) override {
+    close_exchanges(kInf);
+    if (reporter_) {
+      process(out, true);
+      if (network_ && network_->restarts() > 0)
+        log_->info("tum: " + std::to_string(network_->restarts()) + " window restarts (Sec. VIII: the window disagreed with an exchange)");
+      log_->info("tum: " + device_ + ": " + std::to_string(solved_) + " exchanges solved, " + std::to_string(failed_) +
+                 " not (" + first_failure_ + "), " + std::to_string(published_) + " estimates");
+      for (const auto& [id, r] : remote_)
+        if (!r.offset_s && id != device_)
+          log_->warn("tum: the exchanges of " + id + " never paired with " + device1_ + "'s (" +
+                     std::to_string(r.exchanges.size()) + " heard): it is not located");
+    }
+    if (bad_messages_ > 0)
+      log_->warn("tum: " + std::to_string(bad_messages_) + " malformed link messages ignored (first: " + first_bad_ + ")");
+    if (mics_.size() < 2) log_->warn("tum: " + device_ + " has fewer than 2 microphones in its geometry: it cannot be located");
+  }
+
+ private:
+  struct AttitudeAt {
+    double t_s;
+    std::array<double, 4> q;
+  };
+  struct MotionAt {
+    double t_s;
+    bool moving;
+  };
+
+  /// Publishes every exchange whose window has closed by local time `now`.
+  void close_exchanges(double now) {
+    std::sort(pending_.begin(), pending_.end(), [](const Detection& a, const Detection& b) { return a.t_s < b.t_s; });
+    while (!pending_.empty() && now > pending_.front().t_s + pair_window_s_) {
+      const double start = pending_.front().t_s;
+      auto end = std::find_if(pending_.begin(), pending_.end(), [&](const Detection& d) { return d.t_s > start + pair_window_s_; });
+      ObsMessage m;
+      m.device = device_;
+      m.seq = seq_++;
+      for (const auto& v : mics_) m.mics_m.push_back(v);
+      m.speaker_m = speaker_;
+      m.t1_s.assign(mics_.size(), kNaNd);
+      m.t2_s.assign(mics_.size(), kNaNd);
+      std::vector<float> snr1(mics_.size(), -1e9f), snr2(mics_.size(), -1e9f);
+      for (auto it = pending_.begin(); it != end; ++it) {
+        auto& t = it->tone == 1 ? m.t1_s : m.t2_s;
+        auto& s = it->tone == 1 ? snr1 : snr2;
+        if (it->snr_db > s[it->channel]) s[it->channel] = it->snr_db, t[it->channel] = it->t_s;
+      }
+      // The attitude at the exchange: the nearest Attitude event.
+      const AttitudeAt* best = nullptr;
+      for (const auto& a : attitudes_)
+        if (!best || std::abs(a.t_s - start) < std::abs(best->t_s - start)) best = &a;
+      if (best != nullptr && std::abs(best->t_s - start) < 1.0) m.q_wxyz = best->q;
+      // Moving: the gyro saw rotation since the previous exchange (or in the last second).
+      const double since = std::max(last_exchange_s_, start - 1.0);
+      for (const auto& mo : motion_)
+        if (mo.t_s > since && mo.t_s <= start + pair_window_s_ && mo.moving) m.moving = true;
+      last_exchange_s_ = start;
+      pending_.erase(pending_.begin(), end);
+      if (mics_.size() >= 2) link_->publish(topic_obs(prefix_, device_), encode(m));
+    }
+  }
+
+  /// [main] Link handler: every instance's exchanges; only the reporter keeps them.
+  void on_message(const LinkMessage& msg) {
+    if (!reporter_) return;
+    Decoded d = decode(prefix_, msg.topic, msg.payload);
+    if (!d.obs) {
+      if (bad_messages_++ == 0) first_bad_ = msg.topic + ": " + d.error;
+      return;
+    }
+    RemoteDevice& r = remote_[d.obs->device];
+    DeviceExchange ex = to_exchange(*d.obs);
+    r.stamps.push_back(stamp_of(ex));
+    r.exchanges.push_back(std::move(ex));
+    if (std::find(order_.begin(), order_.end(), d.obs->device) == order_.end()) order_.push_back(d.obs->device);
+  }
+
+  double interval_tolerance_s() const { return 2.0 * max_spread_m_ / cfg_.speed_of_sound_mps + 0.002; }
+
+  /// Solves the reporter's exchanges whose partners have all arrived (or `final`).
+  void process(Publisher& out, bool final) {
+    auto self = remote_.find(device1_);
+    auto second = remote_.find(device2_);
+    if (self == remote_.end() || second == remote_.end()) return;
+    RemoteDevice& ref = self->second;
+    // Between exchanges the apparent offset (device tone-1 time minus device 1's) changes only by the
+    // devices' motion over the propagation (a few ms at walking speed), while a wrong pairing is off by
+    // a round period plus the random speaker latencies: a tight tolerance tells them apart.
+    const double tol = pairing_tolerance_s_;
+    // Clock pairing: first after kAlignAfter exchanges (fewer let a wrong round shift tie with the
+    // right one), then again every kAlignAfter exchanges over the latest ones, switching when another
+    // offset pairs more of them.
+    constexpr std::size_t kAlignAfter = 6, kAlignSpan = 30;
+    for (auto& [id, r] : remote_) {
+      if (id == device1_) continue;
+      const std::size_t n = std::min(ref.stamps.size(), r.stamps.size());
+      if (n == 0 || (!final && ref.stamps.size() < kAlignAfter)) continue;
+      if (r.offset_s && ref.stamps.size() < r.aligned_at + kAlignAfter && !final) continue;
+      if (r.offset_s && final && ref.stamps.size() == r.aligned_at) continue;
+      const std::vector<Stamp> rs(ref.stamps.end() - static_cast<std::ptrdiff_t>(std::min(ref.stamps.size(), kAlignSpan)), ref.stamps.end());
+      const std::vector<Stamp> ds(r.stamps.end() - static_cast<std::ptrdiff_t>(std::min(r.stamps.size(), kAlignSpan)), r.stamps.end());
+      int pairs = 0;
+      const int need = std::max(2, static_cast<int>(std::min(rs.size(), ds.size()) / 2));
+      const auto off = align_clocks(rs, ds, tol, interval_tolerance_s(), need, &pairs);
+      r.aligned_at = ref.stamps.size();
+      if (!off) continue;
+      if (r.offset_s && std::abs(*off - *r.offset_s) < tol) continue;  // the same offset
+      int current = 0;
+      if (r.offset_s)
+        for (const Stamp& st : rs) current += match_stamp(st, ds, *r.offset_s, tol, interval_tolerance_s()) >= 0;
+      if (!r.offset_s || (pairs > current + 2 && 2 * pairs > static_cast<int>(std::min(rs.size(), ds.size())))) {
+        if (r.offset_s) log_->info("tum: " + id + ": clock pairing moved to another offset (" + std::to_string(pairs) + " vs " +
+                                   std::to_string(current) + " exchanges agree)");
+        r.offset_s = off;
+        r.recent_offsets.clear();
+      }
+    }
+    while (next_ < ref.exchanges.size()) {
+      const Stamp& rs = ref.stamps[next_];
+      const double t_ref = std::isfinite(rs.t1) ? rs.t1 : rs.t2;
+      std::vector<DeviceExchange> devs{ref.exchanges[next_]};
+      std::vector<std::string> ids{device1_};
+      bool wait = false;
+      std::vector<std::string> order{device2_};
+      for (const auto& id : order_)
+        if (id != device1_ && id != device2_) order.push_back(id);
+      for (const auto& id : order) {
+        RemoteDevice& r = remote_[id];
+        if (!r.offset_s) {
+          if (!final && id == device2_) wait = true;
+          if (id == device2_) break;
+          continue;
+        }
+        const int j = match_stamp(rs, r.stamps, *r.offset_s, tol, interval_tolerance_s());
+        if (j >= 0) {
+          devs.push_back(r.exchanges[static_cast<std::size_t>(j)]);
+          ids.push_back(id);
+          const Stamp& ds = r.stamps[static_cast<std::size_t>(j)];
+          const double o = std::isfinite(ds.t1) && std::isfinite(rs.t1) ? ds.t1 - rs.t1 : ds.t2 - rs.t2;
+          r.recent_offsets.push_back(o);
+          while (r.recent_offsets.size() > 9) r.recent_offsets.pop_front();
+          std::vector<double> s(r.recent_offsets.begin(), r.recent_offsets.end());
+          std::nth_element(s.begin(), s.begin() + s.size() / 2, s.end());
+          r.offset_s = s[s.size() / 2];  // follows clock drift
+        } else if (!final) {
+          const double last = r.stamps.empty() ? -kInf : std::isfinite(r.stamps.back().t1) ? r.stamps.back().t1 : r.stamps.back().t2;
+          if (last < t_ref + *r.offset_s + 2.0 * tol) wait = true;  // may still come
+        }
+        if (id == device2_ && devs.size() < 2) break;
+      }
+      if (wait) return;
+      ++next_;
+      if (devs.size() < 2 || devs[1].id != device2_) {
+        note_failure(device2_ + " did not hear exchange " + std::to_string(next_ - 1));
+        continue;
+      }
+      solve_and_publish(devs, out);
+    }
+  }
+
+  void note_failure(const std::string& why) {
+    if (failed_++ == 0) first_failure_ = why;
+  }
+
+  void solve_and_publish(const std::vector<DeviceExchange>& devs, Publisher& out) {
+    if (calibrate_c_) {
+      if (auto c = speed_of_sound_sample(devs[0], devs[0].t1_s)) c_samples_.push_back(*c);
+      if (auto c = speed_of_sound_sample(devs[1], devs[1].t2_s)) c_samples_.push_back(*c);
+      if (!c_samples_.empty()) {
+        std::vector<double> s = c_samples_;
+        std::nth_element(s.begin(), s.begin() + s.size() / 2, s.end());
+        if (s[s.size() / 2] > 300.0 && s[s.size() / 2] < 400.0) cfg_.speed_of_sound_mps = s[s.size() / 2];
+      }
+    }
+    if (!network_) network_.emplace(cfg_, net_cfg_);
+    network_->set_speed_of_sound(cfg_.speed_of_sound_mps);
+    const NetworkResult res = network_->add(devs);
+    if (!res.ok) {
+      note_failure("exchange at " + std::to_string(devs[0].t1_s.empty() ? 0.0 : devs[0].t1_s[0]) + " s could not be solved");
+      return;
+    }
+    ++solved_;
+    for (const NetworkPlacement& p : res.devices) {
+      if (!p.ok) continue;
+      Eigen::Vector3d x = p.origin;
+      Eigen::Matrix3d cov = p.cov;
+      bool outlier = false;
+      double confidence = 1.0;
+      if (p.id != device1_ && tracker_cfg_.filter && !p.still) {
+        Tracker& tr = trackers_.try_emplace(p.id, tracker_cfg_, std::hash<std::string>{}(p.id)).first->second;
+        const TrackOutput t = tr.update_gaussian(p.origin, p.cov, !p.still, res.t_ref_s);
+        x = t.origin, cov = t.cov, outlier = t.outlier, confidence = t.confidence;
+      } else if (p.id != device1_) {
+        confidence = 1.0 / (1.0 + std::sqrt(std::max(0.0, cov.trace())) / 0.1);
+      }
+      if (debug_)
+        log_->debug("tum: t=" + std::to_string(res.t_ref_s) + " " + p.id + " x=" + std::to_string(x[0]) + "," + std::to_string(x[1]) +
+                    "," + std::to_string(x[2]) + " yaw_off=" + std::to_string(p.yaw_offset_rad) + " rms=" + std::to_string(p.rms_sigma) +
+                    " chi2=" + std::to_string(res.chi2_dof) + (p.still ? " still" : " moving"));
+      Estimate e;
+      e.plugin.assign(instance_);
+      e.reference.assign(device1_);
+      e.frame.assign("body");
+      e.target.assign(p.id);
+      e.t_s = res.t_ref_s;
+      e.position_m = {x[0], x[1], x[2]};
+      e.dims = 3;
+      e.distance_m = x.norm();
+      if (p.id != device1_) {
+        // 1-sigma of the position in the plane perpendicular to device 1's vertical: along the vertical
+        // flat devices leave the position to the height prior (network.hpp), whose spread says nothing
+        // about the error (docs/tum.md, "Uncertainty").
+        const Eigen::Vector3d up = res.up;
+        const Eigen::Matrix3d h = Eigen::Matrix3d::Identity() - up * up.transpose();
+        const double var_h = std::max(0.0, (h * cov * h).trace());
+        e.std_m = std::sqrt(var_h + std_floor_m_ * std_floor_m_);
+        const double r = x.norm();
+        if (r > 0) e.distance_std_m = std::sqrt(std::max(0.0, (x / r).dot(cov * (x / r))));
+      }
+      e.confidence = static_cast<float>(confidence);
+      if (outlier) e.flags |= kEstimateInconsistent;
+      out.publish(e);
+      ++published_;
+    }
+  }
+
+  Logger* log_ = nullptr;
+  Link* link_ = nullptr;
+  std::uint64_t subscription_ = 0;
+  std::string instance_, device_, prefix_, detector_, device1_, device2_;
+  bool reporter_ = false;
+  int template1_ = 0, template2_ = 1;
+  std::map<std::string, int> template_of_;
+  std::vector<std::array<double, 3>> mics_;
+  std::optional<std::array<double, 3>> speaker_;
+  double pair_window_s_ = 0.15, max_spread_m_ = 5.0, motion_gyro_radps_ = 0.05;
+  bool calibrate_c_ = true;
+  bool debug_ = false;
+  SolverConfig cfg_;
+  TrackerConfig tracker_cfg_;
+  NetworkConfig net_cfg_;
+  std::optional<NetworkSolver> network_;
+  double std_floor_m_ = 0.0;
+  double pairing_tolerance_s_ = 0.006;
+  // every instance
+  std::vector<Detection> pending_;
+  std::deque<AttitudeAt> attitudes_;
+  std::deque<MotionAt> motion_;
+  std::uint64_t seq_ = 0;
+  double last_exchange_s_ = -kInf;
+  // reporter
+  std::map<std::string, RemoteDevice> remote_;
+  std::vector<std::string> order_;
+  std::map<std::string, Tracker> trackers_;
+  std::vector<double> c_samples_;
+  std::size_t next_ = 0;
+  std::uint64_t solved_ = 0, failed_ = 0, published_ = 0, bad_messages_ = 0;
+  std::string first_failure_, first_bad_;
+};
+
+}  // namespace
+
+const ParamSchema& schema() {
+  static const ParamSchema schema{
+      string_param("device", "", "Device this instance serves when the host gives none."),
+      string_param("device1", "", "Working device 1 (the output frame); \"\" = the first device of the scene that emits."),
+      string_param("device2", "", "Working device 2; \"\" = the second device of the scene that emits."),
+      int_param("template1", 0, 0, 65535, "", "Detector template of device 1's tone when the host knows no scene."),
+      int_param("template2", 1, 0, 65535, "", "Detector template of device 2's tone when the host knows no scene."),
+      string_param("topic", "tum", "Link topic prefix of the TUM messages (<topic>/obs/<device>)."),
+      string_param("detector", "", "Only detections of this detector instance (or <detector>_<device>); \"\" = any."),
+      float_param("pair_window_s", 0.15, 0.01, 5.0, "s",
+                  "Detections within this time of an exchange's first belong to it (loose sync: the two tones' offset)."),
+      float_param("speed_of_sound_mps", 0.0, 0.0, 400.0, "m/s",
+                  "Speed of sound; 0 = measured from the working devices' own emissions (known mic-speaker geometry)."),
+      float_param("timing_std_s", 5.0e-6, 1e-7, 1e-2, "s", "Arrival timing error (1 sigma) assumed by the solver."),
+      float_param("attitude_std_rad", 0.02, 0.0, 1.0, "rad", "Relative attitude error (1 sigma), applied to the mic/speaker lever arms."),
+      float_param("max_range_m", 10.0, 0.2, 100.0, "m", "Roots farther from device 1 are dropped."),
+      float_param("max_spread_m", 5.0, 0.1, 100.0, "m", "Largest distance between devices (pairs exchanges across clocks)."),
+      float_param("pairing_tolerance_s", 0.006, 0.0005, 1.0, "s",
+                  "Clock pairing: how much a device's apparent clock offset may change between exchanges (motion over the propagation)."),
+      float_param("motion_gyro_radps", 0.05, 0.0, 10.0, "rad/s", "Gyro rate above which a device counts as moving."),
+      enum_param("filter", "none", {"none", "particle"}, "none: the window solve alone (network.hpp); particle: its fixes of moving devices through the Sec. V filter (tracker.hpp)."),
+      int_param("particles", 200, 10, 100000, "", "Particles per tracked device."),
+      float_param("outlier_jump_m", 0.3, 0.01, 100.0, "m",
+                  "Sec. VIII: a window whose device 2 disagrees with the exchange's own range by more restarts; a filtered fix "
+                  "farther than this (plus the motion allowed) from the track is an outlier."),
+      float_param("moving_speed_mps", 0.5, 0.01, 20.0, "m/s", "1-sigma speed of a moving device between exchanges (window smoother and filter)."),
+      int_param("window", 12, 1, 200, "", "Exchanges solved together (network solve, network.hpp)."),
+      float_param("yaw_prior_rad", 0.35, 0.001, 3.2, "rad", "1-sigma heading error of a device's attitude relative to device 1's (estimated per device)."),
+      float_param("still_yaw_prior_rad", 0.35, 0.001, 3.2, "rad",
+                  "The same while no device moves in the window (offsets are then unobservable: the attitude's own accuracy)."),
+      float_param("height_prior_m", 0.5, 0.0, 100.0, "m",
+                  "1-sigma height of a device relative to device 1 (0 = none); only matters where the geometry leaves height unobservable."),
+      bool_param("log_fixes", false, "Log every fix and every root at debug level (log_level: debug)."),
+      float_param("std_floor_m", 0.0, 0.0, 10.0, "m", "Added in quadrature to every reported std (unmodelled errors)."),
+  };
+  return schema;
+}
+
+const locus_plugin_descriptor* descriptor() {
+  static const locus_plugin_descriptor d{
+      LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_LOCALIZER, "tum", "1",
+      "TUM: 3D relative positions of two-mic devices from a two-way tone exchange (paper 000)", 0,
+      [] { return &schema(); }, nullptr, [] { return static_cast<Localizer*>(new TumLocalizer); }};
+  return &d;
+}
+
+}  // namespace locus::plugins::tum

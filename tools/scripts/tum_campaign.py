@@ -1,0 +1,168 @@
+#!/usr/bin/env python3
+"""TUM accuracy campaign (docs/tum.md, "Accuracy"): simulate -> replay -> eval over many seeds, and
+any given scenes (the foreign tum-102).
+
+For every scene: `locus replay SCENE --config CONFIG --speed max` then `locus eval SCENE EST --metric
+tum --json` (Eq. 23 per snapshot) and `--metric position --json` (per-estimate error in device 1's
+body frame). Reports per scene and pooled over all snapshots: median / p90 of the pairwise error,
+devices located, fixes per second (snapshots over the span of the exchanges on device 1's clock),
+and std coverage: the fraction of position estimates whose error is within their std_m (a 3D
+Gaussian gives 61 % within sqrt(trace(cov))), and within 2 std_m (97 %).
+
+usage: tum_campaign.py --locus BIN [--seeds 1-20] [--options overlap=1,track=static]
+                       [--difficulty normal] [--config config/tum.yaml] [--work /tmp/tum-campaign]
+                       [--scene DIR]... [--json OUT]
+python3 with python3-yaml. Prints a markdown table.
+"""
+import argparse, bisect, csv, json, math, os, subprocess, sys
+
+import yaml
+
+
+def parse_seeds(s):
+    out = []
+    for part in filter(None, s.split(',')):
+        if '-' in part:
+            a, b = part.split('-')
+            out += list(range(int(a), int(b) + 1))
+        else:
+            out.append(int(part))
+    return out
+
+
+def run(cmd):
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode not in (0, 4):
+        sys.exit(f"tum_campaign: {' '.join(cmd)} failed ({r.returncode}):\n{r.stderr[-2000:]}")
+    return r
+
+
+def pct(v, q):
+    if not v:
+        return float('nan')
+    s = sorted(v)
+    k = (len(s) - 1) * q
+    lo, hi = math.floor(k), math.ceil(k)
+    return s[lo] + (s[hi] - s[lo]) * (k - lo)
+
+
+def qrot(q, v):
+    w, x, y, z = q
+    tx, ty, tz = 2 * (y * v[2] - z * v[1]), 2 * (z * v[0] - x * v[2]), 2 * (x * v[1] - y * v[0])
+    return [v[0] + w * tx + (y * tz - z * ty), v[1] + w * ty + (z * tx - x * tz), v[2] + w * tz + (x * ty - y * tx)]
+
+
+class Truth:
+    """truth.csv poses (position interpolated, attitude of the nearer row) and truth clocks."""
+
+    def __init__(self, scene):
+        self.rows = {}
+        with open(os.path.join(scene, 'truth.csv')) as f:
+            for r in csv.DictReader(f):
+                self.rows.setdefault(r['id'], []).append(
+                    (float(r['t']), [float(r[c]) for c in 'xyz'], [float(r[c]) for c in ('qw', 'qx', 'qy', 'qz')]))
+        with open(os.path.join(scene, 'scene.yaml')) as f:
+            sc = yaml.safe_load(f)
+        self.clocks = (sc.get('truth') or {}).get('clocks') or {}
+
+    def at(self, i, t):
+        rs = self.rows[i]
+        if len(rs) == 1 or t <= rs[0][0]:
+            return rs[0][1], rs[0][2]
+        if t >= rs[-1][0]:
+            return rs[-1][1], rs[-1][2]
+        k = bisect.bisect_right([r[0] for r in rs], t) - 1
+        a, b = rs[k], rs[k + 1]
+        f = (t - a[0]) / (b[0] - a[0])
+        return [a[1][j] + f * (b[1][j] - a[1][j]) for j in range(3)], (a[2] if f < 0.5 else b[2])
+
+    def true_t(self, i, local):
+        c = self.clocks.get(i, {'offset_s': 0.0, 'skew_ppm': 0.0})
+        return (local - c['offset_s']) / (1 + c['skew_ppm'] * 1e-6)
+
+    def in_body(self, ref, i, t):
+        pr, qr = self.at(ref, t)
+        pi, _ = self.at(i, t)
+        qc = [qr[0], -qr[1], -qr[2], -qr[3]]
+        return qrot(qc, [pi[j] - pr[j] for j in range(3)])
+
+
+def score(locus, scene, config, work):
+    name = os.path.basename(os.path.normpath(scene))
+    est = os.path.join(work, name + '.jsonl')
+    with open(est, 'w') as f:
+        r = subprocess.run([locus, 'replay', scene, '--config', config, '--speed', 'max'], stdout=f,
+                           stderr=subprocess.PIPE, text=True)
+    if r.returncode != 0:
+        sys.exit(f"tum_campaign: replay {scene} failed ({r.returncode}):\n{r.stderr[-2000:]}")
+    tum = json.loads(run([locus, 'eval', scene, est, '--metric', 'tum', '--json']).stdout)
+    pos = json.loads(run([locus, 'eval', scene, est, '--metric', 'position', '--json']).stdout)
+    p = tum['plugins'][0]
+    snaps = [s['error_m'] for s in p['details']['snapshots'] if s.get('error_m') is not None]
+    times = [s['t_s'] for s in p['details']['snapshots']]
+    span = (max(times) - min(times)) if len(times) > 1 else float('nan')
+    fixes = (len(times) - 1) / span if span and span > 0 else float('nan')
+    # std coverage: each estimate's error in device 1's body frame (truth.csv, truth clocks) against
+    # its std_m. A formation and its mirror image fit flat devices equally (docs/tum.md): the error is
+    # taken to the nearer of the two.
+    truth = Truth(scene)
+    within1 = within2 = n = 0
+    with open(est) as f:
+        for line in f:
+            e = json.loads(line)
+            if e.get('type') != 'estimate' or not e.get('std_m') or e['target'] == e['reference']:
+                continue
+            x = truth.in_body(e['reference'], e['target'], truth.true_t(e['reference'], e['t_s']))
+            xm = [x[0], x[1], -x[2]]
+            err = min(math.dist(e['position_m'], x), math.dist(e['position_m'], xm))
+            n += 1
+            within1 += err <= e['std_m']
+            within2 += err <= 2 * e['std_m']
+    s = p['summary']
+    return {'scene': name, 'snapshots': snaps, 'median': pct(snaps, 0.5), 'p90': pct(snaps, 0.9),
+            'located': f"{s.get('targets_located')}/{s.get('targets_expected')}", 'fixes_per_s': fixes,
+            'cov1': within1 / n if n else float('nan'), 'cov2': within2 / n if n else float('nan'),
+            'cov_counts': (within1, within2, n)}
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument('--locus', required=True)
+    ap.add_argument('--seeds', default='')
+    ap.add_argument('--options', default='overlap=1')
+    ap.add_argument('--difficulty', default='normal')
+    ap.add_argument('--config', default='config/tum.yaml')
+    ap.add_argument('--work', default='/tmp/tum-campaign')
+    ap.add_argument('--scene', action='append', default=[])
+    ap.add_argument('--json')
+    a = ap.parse_args()
+    os.makedirs(a.work, exist_ok=True)
+    scenes = list(a.scene)
+    for seed in parse_seeds(a.seeds):
+        d = os.path.join(a.work, f'seed{seed}')
+        cmd = [a.locus, 'simulate', 'tum', d, '--seed', str(seed), '--difficulty', a.difficulty, '-q']
+        for o in filter(None, a.options.split(',')):
+            cmd += ['-o', o]
+        if not os.path.exists(os.path.join(d, 'scene.yaml')):
+            run(cmd)
+        scenes.append(d)
+    rows = [score(a.locus, s, a.config, a.work) for s in scenes]
+    print('| scene | median cm | p90 cm | located | fixes/s | within 1 std | within 2 std |')
+    print('|---|---|---|---|---|---|---|')
+    for r in rows:
+        print(f"| {r['scene']} | {100 * r['median']:.1f} | {100 * r['p90']:.1f} | {r['located']} | {r['fixes_per_s']:.2f} "
+              f"| {100 * r['cov1']:.0f} % | {100 * r['cov2']:.0f} % |")
+    pooled = [e for r in rows for e in r['snapshots']]
+    c1 = sum(r['cov_counts'][0] for r in rows)
+    c2 = sum(r['cov_counts'][1] for r in rows)
+    cn = sum(r['cov_counts'][2] for r in rows)
+    print(f"| **pooled ({len(rows)} scenes, {len(pooled)} snapshots)** | **{100 * pct(pooled, 0.5):.1f}** | "
+          f"**{100 * pct(pooled, 0.9):.1f}** | | | {100 * c1 / max(cn, 1):.0f} % | {100 * c2 / max(cn, 1):.0f} % |")
+    if a.json:
+        with open(a.json, 'w') as f:
+            json.dump({'rows': [{k: v for k, v in r.items() if k != 'snapshots'} for r in rows],
+                       'pooled_median_m': pct(pooled, 0.5), 'pooled_p90_m': pct(pooled, 0.9)}, f, indent=1)
+
+
+if __name__ == '__main__':
+    main()
