@@ -431,6 +431,8 @@ class DeviceRenderer {
                              ? air_absorption_db_per_m(centre_frequency_hz(spec), sim_.acoustics.temperature_c,
                                                        sim_.acoustics.humidity_pct) * std::log(10.0) / 20.0
                              : 0.0;
+    // a tap stands for physical / n_taps reflections when the count is capped (incoherent sum)
+    const double per_tap = std::sqrt(std::max(1.0, physical / static_cast<double>(n_taps)));
     std::vector<double> taps(n_taps), bound(n_taps);
     std::vector<std::int64_t> delays(taps.size());
     for (std::size_t ch = 0; ch < channels_; ++ch) {
@@ -441,7 +443,7 @@ class DeviceRenderer {
         const double d = t - (t_dir - e.t_start_true_s());                                      // after the direct path
         delays[j] = static_cast<std::int64_t>(std::llround(d * fs_));
         taps[j] = rng.normal() * std::exp(-(d - tp.start_s) / tp.tau_s) / (c_ * t);
-        bound[j] = beta_tail * std::exp(-kappa * c_ * t) / (c_ * t);
+        bound[j] = per_tap * beta_tail * std::exp(-kappa * c_ * t) / (c_ * t);
         e2 += taps[j] * taps[j];
       }
       const double scale = e2 > 0.0 ? std::sqrt(tp.energy / e2) : 0.0;

@@ -192,7 +192,8 @@ struct Room {
   /// drawn with that t² density, amplitudes N(0,1)·e^(−t/τ)/(c t), scaled so that the tail's energy is
   /// the late part e^(−2 t_s/τ) of the Sabine diffuse-field energy 16π/A relative to the direct sound
   /// at 1 m (A = S·ᾱ + 4·m·V, the room's absorption area), and none louder than one path of its length
-  /// with max_order + 1 reflections can be (β_max^(max_order+1)·e^(−κ c t)/(c t)): far from the source
+  /// with max_order + 1 reflections can be (β_max^(max_order+1)·e^(−κ c t)/(c t), times √(reflections per
+  /// tap) when `tail_taps` caps the count): far from the source
   /// the tail holds more energy than the direct path, but no single late copy outshines it. Integer-sample tap delays: a diffuse field has no
   /// coherent arrival to time.
   bool diffuse_tail = false;
