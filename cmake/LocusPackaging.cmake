@@ -8,6 +8,10 @@
 # tests/integration/package unpacks the package into a scratch root, replays a scene with its binaries
 # and verifies its unit (systemd-analyze verify).
 
+# cpack (and `ninja install`) install what is built without building `all` first: ./run package builds
+# only locusd, locus and liblocus (not the tests), and the package test runs cpack inside ctest.
+set(CMAKE_SKIP_INSTALL_ALL_DEPENDENCY ON)
+
 set(LOCUS_ETC_DIR /etc/locus)
 set(LOCUS_SHARE_DIR ${CMAKE_INSTALL_DATADIR}/locus)
 
@@ -71,6 +75,7 @@ set(CPACK_PACKAGE_CONTACT "Locus maintainers <locus@localhost>")
 set(CPACK_PACKAGE_VERSION ${PROJECT_VERSION})
 set(CPACK_PACKAGE_DESCRIPTION_SUMMARY "real-time localization from sound, motion and Bluetooth")
 set(CPACK_PACKAGING_INSTALL_PREFIX /usr)
+set(CPACK_INSTALL_PREFIX /usr)
 set(CPACK_SET_DESTDIR ON)  # install with DESTDIR=<staging> and the prefix /usr (see /etc above)
 set(CPACK_PACKAGE_DIRECTORY ${CMAKE_BINARY_DIR}/packages)
 set(CPACK_STRIP_FILES ON)

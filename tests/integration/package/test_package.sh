@@ -28,7 +28,8 @@ depends=$(field Depends)
 echo "     Depends: $depends"
 for lib in libc6 libstdc++6 libyaml-cpp0.7 libfftw3-single3 libsndfile1 libasound2 libjack-jackd2-0 \
            libsdbus-c++1 libmosquitto1 adduser; do
-  if grep -qE "(^|, )$lib( \\(|,|$|[ |])" <<<"$depends"; then ok "Depends names $lib"; else fail "Depends lacks $lib"; fi
+  re=$(sed 's/[+.]/\\&/g' <<<"$lib")
+  if grep -qE "(^|, |\\| )$re( |,|$)" <<<"$depends"; then ok "Depends names $lib"; else fail "Depends lacks $lib"; fi
 done
 grep -qE "libc6 \\(>= [0-9]" <<<"$depends" && ok "Depends are versioned (shlibs)" || fail "unversioned libc6"
 [ "$(field Architecture)" = "$arch" ] && ok "Architecture: $arch" || fail "Architecture: $(field Architecture)"
