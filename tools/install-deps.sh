@@ -11,7 +11,7 @@ arm64=0
 
 PACKAGES=(
   # toolchain
-  build-essential cmake ninja-build pkg-config git ccache
+  build-essential cmake ninja-build pkg-config git ccache mold
   # design card libraries
   libasound2-dev libasound2-plugins libjack-jackd2-dev jackd2 libeigen3-dev libfftw3-dev
   libyaml-cpp-dev libbluetooth-dev
