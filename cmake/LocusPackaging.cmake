@@ -1,4 +1,4 @@
-# Debian packages (CPack DEB), built by `./run package` (amd64) and `./run package-arm64` (cross build):
+# Debian packages (CPack DEB), built by `./run package` (amd64, and arm64 by a cross build; `./run package amd64|arm64` for one):
 #   locus      locusd, locus, liblocus.so.0 (the built-in plugins are linked into locusd/locus), the
 #              configs (/etc/locus/*.yaml as conffiles, every shipped config in /usr/share/locus/config),
 #              the systemd template unit locus@.service and the maintainer scripts creating the `locus`

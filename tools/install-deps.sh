@@ -2,7 +2,7 @@
 # The single source of Locus's build and test dependencies (Debian 12 packages only).
 # Idempotent: installs only what is missing, quiet when everything is already there.
 #   tools/install-deps.sh          the native (amd64) build, tests and packaging (./run test, ./run package)
-#   tools/install-deps.sh --arm64  also the arm64 cross build (./run cross-arm64, ./run test-arm64):
+#   tools/install-deps.sh --arm64  also the arm64 cross build (./run package arm64, ./run test-arm64):
 #                                  crossbuild-essential-arm64, qemu-user-static and the arm64 (multiarch)
 #                                  -dev packages of every library below (adds the arm64 dpkg architecture)
 set -euo pipefail

@@ -2,7 +2,7 @@
 # crossbuild-essential-arm64 (aarch64-linux-gnu-gcc/g++), the arm64 -dev packages of every library
 # (tools/install-deps.sh --arm64) in /usr/lib/aarch64-linux-gnu, headers in /usr/include (shared with
 # the native packages), and qemu-user-static to run what was built (tests). Preset `arm64`
-# (build-arm64/): ./run package-arm64, ./run test-arm64.
+# (build-arm64/): ./run package arm64, ./run test-arm64.
 set(CMAKE_SYSTEM_NAME Linux)
 set(CMAKE_SYSTEM_PROCESSOR aarch64)
 set(LOCUS_CROSS_TRIPLE aarch64-linux-gnu)
