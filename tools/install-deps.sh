@@ -1,11 +1,17 @@
 #!/usr/bin/env bash
 # The single source of Locus's build and test dependencies (Debian 12 packages only).
 # Idempotent: installs only what is missing, quiet when everything is already there.
+#   tools/install-deps.sh          the native (amd64) build, tests and packaging (./run test, ./run package)
+#   tools/install-deps.sh --arm64  also the arm64 cross build (./run package arm64, ./run test-arm64):
+#                                  crossbuild-essential-arm64, qemu-user-static and the arm64 (multiarch)
+#                                  -dev packages of every library below (adds the arm64 dpkg architecture)
 set -euo pipefail
+arm64=0
+[ "${1:-}" = "--arm64" ] && arm64=1
 
 PACKAGES=(
   # toolchain
-  build-essential cmake ninja-build pkg-config git ccache
+  build-essential cmake ninja-build pkg-config git ccache mold
   # design card libraries
   libasound2-dev libasound2-plugins libjack-jackd2-dev jackd2 libeigen3-dev libfftw3-dev
   libyaml-cpp-dev libbluetooth-dev
@@ -21,7 +27,31 @@ PACKAGES=(
   openssl
   # reference checks and plots (never runtime dependencies of the service)
   python3-numpy python3-scipy python3-matplotlib python3-yaml
+  # packaging (./run package: cpack DEB, dpkg-shlibdeps from dpkg-dev) and its test
+  # (systemd-analyze verify of the unit, adduser for the maintainer scripts)
+  dpkg-dev file systemd adduser
 )
+
+# The arm64 cross build: the toolchain, the emulator for its tests, and the arm64 -dev package of every
+# library in PACKAGES (header-only ones, Architecture: all, serve both). libyaml-cpp-dev is not
+# Multi-Arch: same (its arm64 package would remove the amd64 one), so the arm64 build takes the headers
+# of the amd64 -dev package and links the arm64 runtime library (cmake/toolchains/aarch64-linux-gnu.cmake).
+ARM64_PACKAGES=(
+  crossbuild-essential-arm64 qemu-user-static
+  libasound2-dev:arm64 libjack-jackd2-dev:arm64 libfftw3-dev:arm64 libyaml-cpp0.7:arm64
+  libbluetooth-dev:arm64 libsdbus-c++-dev:arm64 libsystemd-dev:arm64 libmosquitto-dev:arm64
+  libspdlog-dev:arm64 libfmt-dev:arm64 libsndfile1-dev:arm64 libboost-dev:arm64
+  libgtest-dev:arm64 libgmock-dev:arm64 libbenchmark-dev:arm64
+)
+SUDO=""
+[ "$(id -u)" -ne 0 ] && SUDO="sudo"
+if [ $arm64 -eq 1 ]; then
+  PACKAGES+=("${ARM64_PACKAGES[@]}")
+  if ! dpkg --print-foreign-architectures | grep -qx arm64; then
+    echo "install-deps: adding the arm64 dpkg architecture" >&2
+    $SUDO dpkg --add-architecture arm64
+  fi
+fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -31,8 +61,6 @@ for p in "${PACKAGES[@]}"; do
 done
 [ ${#missing[@]} -eq 0 ] && exit 0
 
-SUDO=""
-[ "$(id -u)" -ne 0 ] && SUDO="sudo"
 echo "install-deps: installing ${missing[*]}" >&2
 export DEBIAN_FRONTEND=noninteractive
 # jackd2 asks whether to enable realtime scheduling; answer no non-interactively.

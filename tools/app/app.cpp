@@ -1,4 +1,5 @@
 #include "app.hpp"
+#include <CLI/CLI.hpp>
 
 #include <csignal>
 #include <cstdio>

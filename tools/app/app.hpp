@@ -8,7 +8,11 @@
 #include <string>
 #include <vector>
 
-#include <CLI/CLI.hpp>
+// CLI11 is not included here: it costs ~10 s of compile time per translation unit (its headers define
+// validator objects with static constructors); only the files that build command lines include it.
+namespace CLI {
+class App;
+}  // namespace CLI
 
 #include "locus/host.hpp"
 

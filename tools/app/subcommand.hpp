@@ -4,7 +4,11 @@
 
 #include <functional>
 
-#include <CLI/CLI.hpp>
+// CLI11 is not included here: it costs ~10 s of compile time per translation unit (its headers define
+// validator objects with static constructors); only the files that build command lines include it.
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace locus::app {
 

@@ -1,4 +1,5 @@
 #include "devices/cli.hpp"
+#include <CLI/CLI.hpp>
 
 #include <memory>
 

@@ -2,8 +2,6 @@
 // (ALSA PCMs/cards, JACK ports, IIO devices, BLE adapters); see device_list.hpp.
 #pragma once
 
-#include <CLI/CLI.hpp>
-
 #include "subcommand.hpp"
 
 namespace locus::app {

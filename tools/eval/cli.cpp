@@ -1,5 +1,6 @@
 // CLI11 wiring of `locus eval` (options → EvalCommand → run_eval).
 #include "cli.hpp"
+#include <CLI/CLI.hpp>
 
 #include <iostream>
 #include <map>

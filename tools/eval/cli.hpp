@@ -2,8 +2,6 @@
 // (docs/eval.md). Added to the `locus` tool by tools/locus/main.cpp.
 #pragma once
 
-#include <CLI/CLI.hpp>
-
 #include "subcommand.hpp"
 
 namespace locus::app {

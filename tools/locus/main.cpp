@@ -1,6 +1,7 @@
 // locus: the multi-command tool (run, check-config, plugins, version; later: simulate, replay, eval,
 // record, devices). Each subcommand is a function in tools/app.
 #include <iostream>
+#include <CLI/CLI.hpp>
 
 #include "app.hpp"
 #include "locus/build_options.hpp"

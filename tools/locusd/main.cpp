@@ -5,6 +5,7 @@
 // scene device over one in-process link, exactly `locus replay` (tools/replay), paced by `--speed`
 // (realtime by default here: the daemon behaves as if the boards were live; `max` for batch work).
 #include <iostream>
+#include <CLI/CLI.hpp>
 #include <optional>
 #include <string>
 

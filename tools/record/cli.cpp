@@ -1,4 +1,5 @@
 #include "record/cli.hpp"
+#include <CLI/CLI.hpp>
 
 #include <memory>
 

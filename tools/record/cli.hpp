@@ -2,8 +2,6 @@
 // live streams of a node config into a scene directory OUT (see record.hpp, docs/record.md).
 #pragma once
 
-#include <CLI/CLI.hpp>
-
 #include "subcommand.hpp"
 
 namespace locus::app {

@@ -1,4 +1,5 @@
 #include "replay/cli.hpp"
+#include <CLI/CLI.hpp>
 
 #include <memory>
 

@@ -2,8 +2,6 @@
 // directory through the real pipeline, one node per scene device (see replay.hpp, docs/config.md).
 #pragma once
 
-#include <CLI/CLI.hpp>
-
 #include "subcommand.hpp"
 
 namespace locus::app {

@@ -1,5 +1,6 @@
 // `locus simulate`: parse the command line, build the family's Simulation, render it.
 #include "cli.hpp"
+#include <CLI/CLI.hpp>
 
 #include <iostream>
 #include <memory>

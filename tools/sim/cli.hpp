@@ -2,8 +2,6 @@
 // and `locus simulate --list`: renders a scene family into a scene directory (docs/simulator.md).
 #pragma once
 
-#include <CLI/CLI.hpp>
-
 #include "subcommand.hpp"
 
 namespace locus::app {

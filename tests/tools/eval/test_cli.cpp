@@ -1,6 +1,7 @@
 // `locus eval` end to end: a scene directory on disk (scene.yaml + truth.csv), an estimates file,
 // the command line through CLI11, the exit status (0 / 4 / 2 / 1), the table and the JSON output.
 #include <gtest/gtest.h>
+#include <CLI/CLI.hpp>
 
 #include <filesystem>
 #include <fstream>
