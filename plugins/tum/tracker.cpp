@@ -113,9 +113,12 @@ TrackOutput Tracker::update(const Placement& p, bool moving, double t_s) {
     initialised_ = false;
     return update(p, moving, t_s);
   }
+  return settle(0.3 * step, n01);
+}
+
+TrackOutput Tracker::settle(double rough, std::normal_distribution<double>& n01) {
   if (pf_.effective_sample_size() < 0.5 * static_cast<double>(pf_.size())) {
     pf_.resample();
-    const double rough = 0.3 * step;
     pf_.predict([&](Eigen::Vector3d& x, auto& rng) { x += rough * Eigen::Vector3d(n01(rng), n01(rng), n01(rng)); });
   }
   TrackOutput o = summary(false);
@@ -172,14 +175,7 @@ TrackOutput Tracker::update_gaussian(const Eigen::Vector3d& x, const Eigen::Matr
     initialised_ = false;
     return update_gaussian(x, cov_in, moving, t_s);
   }
-  if (pf_.effective_sample_size() < 0.5 * static_cast<double>(pf_.size())) {
-    pf_.resample();
-    const double rough = 0.2 * step;
-    pf_.predict([&](Eigen::Vector3d& p, auto& rng) { p += rough * Eigen::Vector3d(n01(rng), n01(rng), n01(rng)); });
-  }
-  TrackOutput o = summary(false);
-  mean_ = o.origin;
-  return o;
+  return settle(0.2 * step, n01);
 }
 
 }  // namespace locus::plugins::tum

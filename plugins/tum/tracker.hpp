@@ -13,6 +13,8 @@
 // Systematic resampling when the effective sample size drops below half, with a small roughening.
 #pragma once
 
+#include <random>
+
 #include <Eigen/Dense>
 #include <optional>
 
@@ -55,6 +57,9 @@ class Tracker {
 
  private:
   TrackOutput summary(bool outlier) const;
+  /// After a weight update: resample (and roughen by `rough` m) when the effective sample size has
+  /// fallen below half, then the summary; n01 is the caller's draw stream.
+  TrackOutput settle(double rough, std::normal_distribution<double>& n01);
   TrackerConfig cfg_;
   dsp::ParticleFilter<Eigen::Vector3d> pf_;
   bool initialised_ = false;
