@@ -86,7 +86,7 @@ step "build it"
 run "build the out-of-tree plugin" cmake --build "$PLUGIN_BUILD"
 SO=$(find "$PLUGIN_BUILD" -maxdepth 2 -name 'libclip_detector.so' -print -quit)
 [ -n "$SO" ] || fail "libclip_detector.so was not built in $PLUGIN_BUILD"
-nm -D --defined-only "$SO" | grep -q ' T locus_plugin_enum$' || fail "$SO does not export locus_plugin_enum"
+nm -D --defined-only "$SO" > "$TMP/nm" && grep -q ' T locus_plugin_enum$' "$TMP/nm" || fail "$SO does not export locus_plugin_enum"
 mkdir -p "$PLUGINS"
 cp "$SO" "$PLUGINS/"
 PLUGIN_SO=$PLUGINS/libclip_detector.so

@@ -50,7 +50,8 @@ for f in /usr/bin/locusd /usr/bin/locus /usr/lib/systemd/system/locus@.service /
 done
 grep -qE "^/usr/lib/(.*/)?liblocus\\.so\\.0" "$tmp/contents" && ok "contains liblocus.so.0" || fail "missing liblocus.so.0"
 grep -qE "/include/|\\.so$|/cmake/" "$tmp/contents" && fail "development files in the runtime package" || ok "no development files in locus"
-[ -n "$dev" ] && dpkg-deb -c "$dev" | grep -q "include/locus/plugin.hpp" && ok "locus-dev holds the plugin API headers" || fail "locus-dev without plugin.hpp"
+# list to a file first: `grep -q` closing the pipe early kills dpkg-deb with SIGPIPE under pipefail
+[ -n "$dev" ] && dpkg-deb -c "$dev" > "$tmp/dev-contents" && grep -q "include/locus/plugin.hpp" "$tmp/dev-contents" && ok "locus-dev holds the plugin API headers" || fail "locus-dev without plugin.hpp"
 
 # 4. Unpacked into a scratch root: its binaries find their libraries (liblocus from the root itself),
 #    check the shipped board configs, simulate and replay a scene, and print estimates.
