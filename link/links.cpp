@@ -17,11 +17,13 @@ void register_builtin_links(Registry& registry) {
   registry.add_link(LinkDescriptor{
       "mqtt",
       "MQTT broker between boards (libmosquitto): reconnects, re-subscribes, queues while offline; "
-      "optional username/password and TLS (docs/mqtt.md)",
+      "optional username/password, TLS and signed messages (docs/mqtt.md)",
       mqtt::mqtt_link_schema(),
       [](const Params& params, Logger& log) -> std::unique_ptr<Link> {
         mqtt::MqttOptions options = mqtt::mqtt_options_from_params(params, "mqtt link");
-        return std::make_unique<mqtt::MqttLink>(std::move(options), params.get_string("topic_prefix"), log);
+        auto auth = mqtt::mqtt_link_authenticator(params, options);
+        return std::make_unique<mqtt::MqttLink>(std::move(options), params.get_string("topic_prefix"), log,
+                                                std::move(auth));
       },
   });
   registry.add_output(OutputDescriptor{

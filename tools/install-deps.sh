@@ -17,6 +17,8 @@ PACKAGES=(
   libyaml-cpp-dev libbluetooth-dev
   # HAL backends: BlueZ over D-Bus (sdbus-c++ needs libsystemd-dev for pkg-config), MQTT link
   libsdbus-c++-dev libsystemd-dev libmosquitto-dev
+  # HMAC-SHA256 of signed link messages (link/auth: OpenSSL's libcrypto)
+  libssl-dev
   # well-kept libraries for what is not our business
   libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev libsndfile1-dev libboost-dev
   # tests and benchmarks
@@ -39,7 +41,7 @@ PACKAGES=(
 ARM64_PACKAGES=(
   crossbuild-essential-arm64 qemu-user-static
   libasound2-dev:arm64 libjack-jackd2-dev:arm64 libfftw3-dev:arm64 libyaml-cpp0.7:arm64
-  libbluetooth-dev:arm64 libsdbus-c++-dev:arm64 libsystemd-dev:arm64 libmosquitto-dev:arm64
+  libbluetooth-dev:arm64 libsdbus-c++-dev:arm64 libsystemd-dev:arm64 libmosquitto-dev:arm64 libssl-dev:arm64
   libspdlog-dev:arm64 libfmt-dev:arm64 libsndfile1-dev:arm64 libboost-dev:arm64
   libgtest-dev:arm64 libgmock-dev:arm64 libbenchmark-dev:arm64
 )

@@ -5,7 +5,9 @@
 #include "mqtt/mqtt_link.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <exception>
+#include <unistd.h>
 
 namespace locus::mqtt {
 
@@ -13,7 +15,37 @@ ParamSchema mqtt_link_schema() {
   ParamSchema s = mqtt_connection_schema();
   s.push_back(string_param("topic_prefix", std::string("locus"),
                            "Root of the link's MQTT topics: link topic t travels as <topic_prefix>/link/t."));
+  s.push_back(string_param("auth_key_file", std::string(""),
+                           "Shared site key (>= 16 bytes, not readable by others): sign every link message "
+                           "with HMAC-SHA256 and drop unsigned, forged, stale and replayed ones. Empty = off."));
+  s.push_back(string_param("auth_sender", std::string(""),
+                           "This node's name in signed messages; empty = the MQTT user name, else the client id, "
+                           "else the host name."));
+  s.push_back(float_param("auth_window_s", 30.0, 1.0, 3600.0, "s",
+                           "Largest difference between a signed message's send time and this board's clock."));
   return s;
+}
+
+namespace {
+double unix_now_s() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+}  // namespace
+
+std::unique_ptr<linkauth::MessageAuthenticator> mqtt_link_authenticator(const Params& params,
+                                                                        const MqttOptions& options) {
+  const std::string key_file = params.get_string("auth_key_file");
+  if (key_file.empty()) return nullptr;
+  std::string sender = params.get_string("auth_sender");
+  if (sender.empty()) sender = options.username;
+  if (sender.empty()) sender = options.client_id;
+  if (sender.empty()) {
+    char host[256] = {};
+    if (::gethostname(host, sizeof host - 1) == 0) sender = host;
+  }
+  std::string key = linkauth::load_key_file(key_file, "mqtt link: auth_key_file");
+  return std::make_unique<linkauth::MessageAuthenticator>(std::move(key), std::move(sender),
+                                                          params.get_float("auth_window_s"));
 }
 
 void check_topic_prefix(const std::string& prefix, std::string_view key, std::string_view what) {
@@ -37,8 +69,9 @@ std::optional<std::string> LinkTopics::from_mqtt(std::string_view mqtt_topic) co
   return std::string(mqtt_topic.substr(root_.size()));
 }
 
-MqttLink::MqttLink(MqttOptions options, std::string topic_prefix, Logger& log)
-    : topics_(std::move(topic_prefix)), log_(log) {
+MqttLink::MqttLink(MqttOptions options, std::string topic_prefix, Logger& log,
+                   std::unique_ptr<linkauth::MessageAuthenticator> auth)
+    : topics_(std::move(topic_prefix)), log_(log), auth_(std::move(auth)) {
   conn_ = std::make_unique<MqttConnection>(
       std::move(options), log, "mqtt link",
       [this](const std::string& topic, std::string_view payload, const std::vector<std::uint32_t>& ids) {
@@ -46,9 +79,22 @@ MqttLink::MqttLink(MqttOptions options, std::string topic_prefix, Logger& log)
       });
 }
 
-MqttLink::~MqttLink() { conn_.reset(); }
+MqttLink::~MqttLink() {
+  conn_.reset();
+  if (auth_ && auth_->counts().rejected() > 0) {
+    const linkauth::AuthCounts c = auth_->counts();
+    log_.warn("mqtt link: rejected " + std::to_string(c.rejected()) + " link messages (" +
+              std::to_string(c.bad_signature) + " bad signature, " + std::to_string(c.replayed) + " replayed, " +
+              std::to_string(c.stale) + " stale, " + std::to_string(c.unsigned_messages) + " unsigned, " +
+              std::to_string(c.malformed) + " malformed); accepted " + std::to_string(c.accepted));
+  }
+}
 
 void MqttLink::publish(std::string_view topic, std::string_view payload) {
+  if (auth_) {
+    conn_->publish(topics_.to_mqtt(topic), auth_->sign(topic, payload, unix_now_s()), false);
+    return;
+  }
   conn_->publish(topics_.to_mqtt(topic), payload, false);
 }
 
@@ -99,12 +145,27 @@ std::uint64_t MqttLink::unmatched() const {
 void MqttLink::dispatch(const std::string& mqtt_topic, std::string_view payload,
                         const std::vector<std::uint32_t>& ids) {
   std::optional<std::string> topic = topics_.from_mqtt(mqtt_topic);
+  std::string body(payload);
+  if (topic && auth_) {
+    linkauth::MessageAuthenticator::Result r = auth_->verify(*topic, payload, unix_now_s());
+    if (r.verdict != linkauth::Verdict::Accepted) {
+      // Logged while rare (the first 20), then every 1000th: a flood must not flood the journal.
+      const std::uint64_t n = auth_->counts().rejected();
+      if (n <= 20 || n % 1000 == 0) {
+        log_.warn("mqtt link: dropped a " + std::string(linkauth::verdict_name(r.verdict)) + " message on '" +
+                  *topic + "'" + (r.sender.empty() ? std::string() : " claiming sender '" + r.sender + "'") + " (" +
+                  std::to_string(n) + " rejected so far)");
+      }
+      return;
+    }
+    body = std::move(r.payload);
+  }
   std::unique_lock lock(mutex_);
   if (!topic) {
     ++unmatched_;
     return;
   }
-  const LinkMessage msg{std::move(*topic), std::string(payload)};
+  const LinkMessage msg{std::move(*topic), std::move(body)};
   std::vector<std::pair<std::uint64_t, std::shared_ptr<LinkHandler>>> targets;
   for (const auto& s : subs_) {
     // The broker names the filters this copy matched; without identifiers, match locally.

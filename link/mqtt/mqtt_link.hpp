@@ -17,13 +17,21 @@
 #include <string>
 #include <vector>
 
+#include "auth/message_auth.hpp"
 #include "locus/link.hpp"
 #include "mqtt/mqtt_connection.hpp"
 
 namespace locus::mqtt {
 
-/// Schema of `link:` params for type mqtt: mqtt_connection_schema() plus topic_prefix.
+/// Schema of `link:` params for type mqtt: mqtt_connection_schema() plus topic_prefix and the message
+/// authentication keys (auth_key_file, auth_sender, auth_window_s).
 ParamSchema mqtt_link_schema();
+
+/// The authenticator the params ask for (auth_key_file non-empty), else nullptr. `fallback_sender` names
+/// this node when auth_sender is empty (the MQTT user name, else the client id, else the host name).
+/// Throws linkauth::AuthError naming the key.
+std::unique_ptr<linkauth::MessageAuthenticator> mqtt_link_authenticator(const Params& params,
+                                                                        const MqttOptions& options);
 
 /// Link topic <-> MQTT topic under a prefix ("locus" -> "locus/link/<topic>").
 class LinkTopics {
@@ -45,7 +53,10 @@ void check_topic_prefix(const std::string& prefix, std::string_view key, std::st
 class MqttLink final : public Link {
  public:
   /// Connects (see MqttConnection); throws MqttError naming host:port and the reason.
-  MqttLink(MqttOptions options, std::string topic_prefix, Logger& log);
+  /// With `auth`, every message is signed on publish and verified on arrival; rejected ones are counted
+  /// (auth_counts()), logged, and never reach a handler (docs/mqtt.md, "Message authentication").
+  MqttLink(MqttOptions options, std::string topic_prefix, Logger& log,
+           std::unique_ptr<linkauth::MessageAuthenticator> auth = nullptr);
   ~MqttLink() override;
 
   /// [main] Never blocks on the network. Throws std::invalid_argument for a topic with '+' or '#'.
@@ -64,6 +75,8 @@ class MqttLink final : public Link {
   /// MQTT messages that arrived but matched no current subscription (e.g. just unsubscribed) or lay
   /// outside the prefix.
   std::uint64_t unmatched() const;
+  /// Message authentication verdicts so far (all zero without a key).
+  linkauth::AuthCounts auth_counts() const { return auth_ ? auth_->counts() : linkauth::AuthCounts{}; }
   const LinkTopics& topics() const noexcept { return topics_; }
   const MqttConnection& connection() const noexcept { return *conn_; }
 
@@ -86,6 +99,7 @@ class MqttLink final : public Link {
   std::uint64_t delivering_sub_ = 0;
   std::uint64_t deliveries_ = 0;
   std::uint64_t unmatched_ = 0;
+  std::unique_ptr<linkauth::MessageAuthenticator> auth_;
   std::unique_ptr<MqttConnection> conn_;  // last: destroyed first, so no callback outlives the members
 };
 

@@ -314,6 +314,38 @@ TEST_F(PluginDirectory, EmptyDirectoryIsFine) {
   EXPECT_TRUE(registry.load_directory(dir_.string()).empty());
 }
 
+TEST_F(PluginDirectory, WorldWritableDirectoryIsRefusedWithTheFix) {
+  fs::copy_file(kGood, dir_ / "a_good.so");
+  fs::permissions(dir_, fs::perms::others_write, fs::perm_options::add);
+  Registry registry;
+  const std::size_t before = registry.plugins().size();
+  const std::vector<std::string> failures = registry.load_directory(dir_.string());
+  ASSERT_EQ(failures.size(), 1u) << ::testing::PrintToString(failures);
+  EXPECT_NE(failures[0].find("plugin directory " + dir_.string() + ": is world-writable"), std::string::npos)
+      << failures[0];
+  EXPECT_NE(failures[0].find("chmod o-w " + dir_.string()), std::string::npos) << failures[0];
+  EXPECT_EQ(registry.plugins().size(), before);
+  // Named directly, the library is refused for its directory too.
+  const std::string msg = load_error(registry, (dir_ / "a_good.so").string());
+  EXPECT_NE(msg.find("its directory " + dir_.string() + " is world-writable"), std::string::npos) << msg;
+  EXPECT_EQ(registry.find_plugin("fixture_level"), nullptr);
+}
+
+TEST_F(PluginDirectory, WorldWritableLibraryIsRefused) {
+  fs::copy_file(kGood, dir_ / "a_good.so");
+  fs::copy_file(kGood, dir_ / "b_writable.so");
+  fs::permissions(dir_ / "b_writable.so", fs::perms::others_write, fs::perm_options::add);
+  Registry registry;
+  const std::string msg = load_error(registry, (dir_ / "b_writable.so").string());
+  EXPECT_NE(msg.find("is world-writable (mode 0"), std::string::npos) << msg;
+  EXPECT_EQ(registry.find_plugin("fixture_level"), nullptr);
+  // In a directory scan the writable one is a failure; the other still loads.
+  const std::vector<std::string> failures = registry.load_directory(dir_.string());
+  ASSERT_EQ(failures.size(), 1u) << ::testing::PrintToString(failures);
+  EXPECT_NE(failures[0].find((dir_ / "b_writable.so").string()), std::string::npos) << failures[0];
+  EXPECT_NE(registry.find_plugin("fixture_level"), nullptr);
+}
+
 TEST(PluginLoader, MissingDirectoryIsOneFailure) {
   Registry registry;
   const std::string dir = kPluginDir + "/no-such-directory";

@@ -5,9 +5,16 @@
 // what is already registered and within the library), and only then are they added. A refused library is dlclose()d and leaves
 // the registry as it was. An accepted library's handle stays open in `libraries_` until the
 // registry is destroyed (after every instance it created is gone).
+//
+// Plugins are code that locusd runs, often as a service user with CAP_SYS_NICE: a library or a plugin
+// directory that anyone on the machine can write is refused (with the chmod that fixes it), as sshd's
+// StrictModes refuses a world-writable authorized_keys. Only the files named or found in the configured
+// directories are loaded; nothing is searched for on a library path.
 #include <dlfcn.h>
+#include <sys/stat.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -76,6 +83,19 @@ std::string dl_reason(const std::string& dlopen_path) {
   return reason;
 }
 
+/// Why `path` (a library or the directory holding libraries) may not be trusted: it is world-writable,
+/// so anyone could replace or add code. Empty when it is fine. Follows symlinks: the target is what
+/// gets loaded.
+std::string writable_by_others(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return {};
+  if ((st.st_mode & S_IWOTH) == 0) return {};
+  char mode[8];
+  std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
+  return std::string("is world-writable (mode ") + mode + "): anyone on this machine could change the code "
+         "locusd runs; refused (fix: chmod o-w " + path + ")";
+}
+
 }  // namespace
 
 std::vector<std::string> Registry::load_library(const std::string& path) {
@@ -87,6 +107,13 @@ std::vector<std::string> Registry::load_library(const std::string& path) {
   const fs::file_status status = fs::status(path, ec);
   if (ec || !fs::exists(status)) throw error("no such file");
   if (fs::is_directory(status)) throw error("is a directory, not a shared object");
+  if (const std::string why = writable_by_others(path); !why.empty()) throw error(why);
+  const fs::path parent = fs::absolute(fs::path(path), ec).parent_path();
+  if (!ec) {
+    if (const std::string why = writable_by_others(parent.string()); !why.empty()) {
+      throw error("its directory " + parent.string() + " " + why);
+    }
+  }
 
   // dlopen() searches the library path for a name without a '/'; always hand it a real path.
   std::string dlopen_path = path;
@@ -167,6 +194,10 @@ std::vector<std::string> Registry::load_directory(const std::string& dir) {
   }
   if (!fs::is_directory(status)) {
     failures.push_back("plugin directory " + dir + ": not a directory");
+    return failures;
+  }
+  if (const std::string why = writable_by_others(dir); !why.empty()) {
+    failures.push_back("plugin directory " + dir + ": " + why);
     return failures;
   }
 
