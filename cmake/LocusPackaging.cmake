@@ -39,6 +39,8 @@ install(FILES ${PROJECT_SOURCE_DIR}/README.md ${PROJECT_SOURCE_DIR}/docs/raspber
               ${PROJECT_SOURCE_DIR}/docs/config.md ${PROJECT_SOURCE_DIR}/docs/hal-alsa.md
               ${PROJECT_SOURCE_DIR}/docs/events.md
         DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/doc/locus COMPONENT runtime)
+install(FILES ${PROJECT_SOURCE_DIR}/packaging/mosquitto/locus.acl ${PROJECT_SOURCE_DIR}/docs/mqtt.md
+        DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/doc/locus/examples COMPONENT runtime)
 
 # conffiles: every file installed under /etc (dpkg keeps a user's edits on upgrade).
 set(LOCUS_CONFFILES "")

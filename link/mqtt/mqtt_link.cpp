@@ -152,9 +152,9 @@ void MqttLink::dispatch(const std::string& mqtt_topic, std::string_view payload,
       // Logged while rare (the first 20), then every 1000th: a flood must not flood the journal.
       const std::uint64_t n = auth_->counts().rejected();
       if (n <= 20 || n % 1000 == 0) {
-        log_.warn("mqtt link: dropped a " + std::string(linkauth::verdict_name(r.verdict)) + " message on '" +
-                  *topic + "'" + (r.sender.empty() ? std::string() : " claiming sender '" + r.sender + "'") + " (" +
-                  std::to_string(n) + " rejected so far)");
+        log_.warn("mqtt link: dropped a message on '" + *topic + "'" +
+                  (r.sender.empty() ? std::string() : " claiming sender '" + r.sender + "'") + ": " +
+                  linkauth::verdict_name(r.verdict) + " (" + std::to_string(n) + " rejected so far)");
       }
       return;
     }

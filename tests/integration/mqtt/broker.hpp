@@ -81,6 +81,8 @@ class Broker {
     std::string username;  ///< non-empty: password file with this user, anonymous refused
     std::string password;
     bool tls = false;      ///< TLS listener with a certificate for 127.0.0.1/localhost
+    std::vector<std::pair<std::string, std::string>> more_users;  ///< more (user, password) in the password file
+    std::string acl_file;  ///< non-empty: mosquitto's acl_file (with a username)
   };
 
   Broker(fs::path dir, Options options) : dir_(std::move(dir)), opt_(std::move(options)) {
@@ -88,6 +90,12 @@ class Broker {
       if (!run_command("mosquitto_passwd -c -b '" + (dir_ / "passwd").string() + "' '" + opt_.username + "' '" +
                        opt_.password + "' >/dev/null 2>&1")) {
         throw std::runtime_error("mosquitto_passwd failed");
+      }
+      for (const auto& [user, password] : opt_.more_users) {
+        if (!run_command("mosquitto_passwd -b '" + (dir_ / "passwd").string() + "' '" + user + "' '" + password +
+                         "' >/dev/null 2>&1")) {
+          throw std::runtime_error("mosquitto_passwd failed for " + user);
+        }
       }
     }
     if (opt_.tls) make_certificates();
@@ -158,6 +166,7 @@ class Broker {
       c << "allow_anonymous true\n";
     } else {
       c << "allow_anonymous false\npassword_file " << (dir_ / "passwd").string() << "\n";
+      if (!opt_.acl_file.empty()) c << "acl_file " << opt_.acl_file << "\n";
     }
     if (opt_.tls) {
       c << "cafile " << (dir_ / "ca.crt").string() << "\n";

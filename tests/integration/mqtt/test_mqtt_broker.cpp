@@ -19,6 +19,7 @@
 #include <map>
 #include <mutex>
 #include <numbers>
+#include <sys/stat.h>
 #include <thread>
 
 #include "integration/mqtt/broker.hpp"
@@ -312,6 +313,105 @@ TEST(MqttLinkBroker, WrongPasswordIsRefused) {
   ASSERT_TRUE(ok.wait_ready(10));
   ok.publish("t", "authorized");
   ASSERT_TRUE(in.wait_count(1));
+}
+
+// packaging/mosquitto/locus.acl, as shipped: a board writes only the link topics that end in its own
+// name (and its own output tree); everyone reads the site.
+TEST(MqttLinkBroker, AclLetsABoardWriteOnlyItsOwnTopics) {
+  TempDir dir;
+  Broker::Options auth;
+  auth.username = "L01";
+  auth.password = "pw-l01";
+  auth.more_users = {{"L02", "pw-l02"}, {"hub", "pw-hub"}};
+  auth.acl_file = std::string(LOCUS_SOURCE_DIR) + "/packaging/mosquitto/locus.acl";
+  Broker broker(dir.path(), auth);
+  broker.start();
+  TestLogger log;
+  const auto as = [&](const char* user, const char* password) {
+    MqttOptions o = options_for(broker);
+    o.username = user;
+    o.password = password;
+    return o;
+  };
+  Inbox hub_in;
+  MqttLink hub(as("hub", "pw-hub"), "locus", log);
+  hub.subscribe("amil/#", hub_in.handler());
+  ASSERT_TRUE(hub.wait_ready(10));
+  MqttLink l01(as("L01", "pw-l01"), "locus", log);
+  MqttLink l02(as("L02", "pw-l02"), "locus", log);
+  ASSERT_TRUE(l01.wait_ready(10));
+  ASSERT_TRUE(l02.wait_ready(10));
+
+  l01.publish("amil/arrivals/L01", "own");
+  l01.publish("amil/arrivals/L02", "forged by L01");  // the broker drops it (not authorized)
+  l01.publish("amil/hello", "not a board topic");     // too short: no board's
+  l02.publish("amil/arrivals/L02", "own L02");
+  l01.publish("amil/done/L01", "own again");          // after the forged one on the same connection
+  ASSERT_TRUE(l01.flush(10));
+  ASSERT_TRUE(l02.flush(10));
+  ASSERT_TRUE(hub_in.wait_count(3)) << broker.log();
+  std::this_thread::sleep_for(300ms);  // anything else would have arrived by now
+  const std::vector<LinkMessage> got = hub_in.messages();
+  ASSERT_EQ(got.size(), 3u) << ::testing::PrintToString(hub_in.topics());
+  std::map<std::string, std::string> by_topic;
+  for (const LinkMessage& m : got) by_topic[m.topic] = m.payload;
+  EXPECT_EQ(by_topic["amil/arrivals/L01"], "own");
+  EXPECT_EQ(by_topic["amil/arrivals/L02"], "own L02");  // L02's, never L01's forgery
+  EXPECT_EQ(by_topic["amil/done/L01"], "own again");
+  EXPECT_EQ(by_topic.count("amil/hello"), 0u);
+}
+
+// Signed link messages (auth_key_file): an attacker on the broker without the key cannot inject a
+// beep report, alter one, or replay a real one; each is dropped before any handler and counted.
+TEST(MqttLinkBroker, SignedLinkDropsForgedAlteredAndReplayedMessagesAndCountsThem) {
+  TempDir dir;
+  Broker broker(dir.path(), {});
+  broker.start();
+  TestLogger log;
+  const std::string key_path = (dir.path() / "site.key").string();
+  {
+    std::ofstream(key_path) << "9f2c1a7e5b3d8c4f6a0e1d2c3b4a5f6e\n";
+  }
+  ::chmod(key_path.c_str(), 0600);
+  const auto signer = [&](const char* name) {
+    return std::make_unique<linkauth::MessageAuthenticator>(linkauth::load_key_file(key_path, "test"), name, 30.0);
+  };
+  MqttLink a(options_for(broker), "locus", log, signer("A"));
+  Inbox b_in;
+  MqttLink b(options_for(broker), "locus", log, signer("B"));
+  b.subscribe("amil/#", b_in.handler());
+  Inbox wire;  // the attacker: no key, sees the raw bytes
+  MqttLink attacker(options_for(broker), "locus", log);
+  attacker.subscribe("amil/#", wire.handler());
+  ASSERT_TRUE(a.wait_ready(10));
+  ASSERT_TRUE(b.wait_ready(10));
+  ASSERT_TRUE(attacker.wait_ready(10));
+
+  a.publish("amil/arrivals/A", R"({"beep":1,"frame":1000})");
+  ASSERT_TRUE(b_in.wait_count(1));
+  ASSERT_TRUE(wire.wait_count(1));
+  EXPECT_EQ(b_in.messages()[0].payload, R"({"beep":1,"frame":1000})");
+  const std::string captured = wire.messages()[0].payload;
+  EXPECT_EQ(captured.rfind("LOCUS-HMAC1 A ", 0), 0u) << captured;
+
+  attacker.publish("amil/arrivals/A", R"({"beep":2,"frame":999})");   // forged, unsigned
+  attacker.publish("amil/arrivals/A", captured);                      // replayed as is
+  std::string altered = captured;
+  altered.replace(altered.find("1000"), 4, "2000");
+  attacker.publish("amil/arrivals/A", altered);                       // altered
+  attacker.publish("amil/arrivals/B", captured);                      // moved to another board's topic
+  ASSERT_TRUE(eventually([&] { return b.auth_counts().rejected() == 4; })) << b.auth_counts().rejected();
+  a.publish("amil/arrivals/A", R"({"beep":3,"frame":3000})");
+  ASSERT_TRUE(b_in.wait_count(2));
+  std::this_thread::sleep_for(200ms);
+  ASSERT_EQ(b_in.size(), 2u);
+  EXPECT_EQ(b_in.messages()[1].payload, R"({"beep":3,"frame":3000})");
+  const linkauth::AuthCounts c = b.auth_counts();
+  EXPECT_EQ(c.accepted, 2u);
+  EXPECT_EQ(c.unsigned_messages, 1u);
+  EXPECT_EQ(c.replayed, 1u);
+  EXPECT_EQ(c.bad_signature, 2u);
+  EXPECT_TRUE(log.contains("dropped a message on 'amil/arrivals/A' claiming sender 'A': replayed"));
 }
 
 TEST(MqttLinkBroker, Tls) {
