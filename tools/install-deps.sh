@@ -21,8 +21,8 @@ PACKAGES=(
   libssl-dev
   # well-kept libraries for what is not our business
   libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev libsndfile1-dev libboost-dev
-  # tests and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev valgrind
+  # tests and benchmarks; clang's libFuzzer for ./run fuzz (tests/fuzz)
+  libgtest-dev libgmock-dev libbenchmark-dev valgrind clang libclang-rt-dev
   # real components the integration tests start themselves (docs: ../shared/docs/real-components.md)
   dbus python3-dbusmock mosquitto mosquitto-clients sox
   # TLS certificates for the MQTT TLS test (tests/integration/mqtt)

@@ -902,7 +902,8 @@ Params validate_params(const ParamSchema& schema, const std::vector<std::pair<st
   };
   std::set<std::string, std::less<>> seen;
   for (const auto& [key, text] : kv) {
-    const auto spec = std::find_if(schema.begin(), schema.end(), [&](const ParamSpec& s) { return s.key == key; });
+    // (by name, not by capture: clang 14, which builds the fuzz targets, cannot capture a structured binding)
+    const auto spec = std::find_if(schema.begin(), schema.end(), [&k = key](const ParamSpec& s) { return s.key == k; });
     if (spec == schema.end()) {
       error(key, unknown_key_message(key, known));
       continue;
