@@ -210,7 +210,10 @@ const Family& tum() {
       "TUM (paper 000): four two-mic devices in a 5.3x6x3.5 m room, each emits its own 2-8 kHz 40 ms chirp in "
       "turn; static or the elliptical track (31x58 cm, 5.9 s/round); IMU attitude",
       {{"track", "static|ellipse", "static", "the moving device is static or rides the elliptical track"},
-       {"round_s", "double", "0.333", "period of one tone-exchange round (all four devices)"}},
+       {"round_s", "double", "0.333", "period of one tone-exchange round (all four devices)"},
+       {"overlap", "bool", "false", "the working pair's tones overlap under loose sync (Sec. VII-A), as tum-102's"},
+       {"overlap_max_s", "double", "0.040", "with overlap: the second tone starts 0..this after the first"},
+       {"near_far_db", "double", "0", "> 0: a device's own tone at its nearest mic this far above the other's"}},
       make_tum};
   return family;
 }
