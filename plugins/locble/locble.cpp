@@ -1,0 +1,430 @@
+// The `locble` localizer (see locble.hpp): plugin API glue around solver.hpp.
+//
+// Why it is shaped this way: every input is an event the host already produces (raw BLE adverts from
+// BlueZ or ble.csv, steps from `steps`, headings from `attitude`), so the same config runs a replay
+// and a live phone-like node. Readings are kept per tag with their time only; positions along the
+// path are looked up when the estimate is computed, because a step event arrives after the step it
+// measures (the detector confirms it half a step later) and the path before it is only known then.
+// Estimates are published every `update_period_s` of data time for every tag with enough readings,
+// and once more at the end.
+#include "locble.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <numbers>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "messages.hpp"
+#include "solver.hpp"
+
+namespace locus::plugins::locble {
+
+namespace {
+
+bool detector_matches(std::string_view got, const std::string& want, const std::string& device) {
+  if (want.empty()) return true;
+  return got == want || got == want + "_" + device;
+}
+
+class LocBleLocalizer final : public Localizer {
+ public:
+  /// [main] The link must not call a destroyed instance.
+  ~LocBleLocalizer() override {
+    if (link_ != nullptr && subscribed_) link_->unsubscribe(subscription_);
+  }
+
+  /// [main]
+  void configure(const Params& p, HostContext& ctx) override {
+    log_ = &ctx.log;
+    link_ = &ctx.link;
+    instance_ = std::string(ctx.instance);
+    device_ = !ctx.device.empty() ? std::string(ctx.device) : p.get_string("device");
+    steps_detector_ = p.get_string("steps_detector");
+    attitude_detector_ = p.get_string("attitude_detector");
+    stride_scale_ = p.get_float("stride_scale");
+    default_stride_m_ = p.get_float("default_stride_m");
+    bin_m_ = p.get_float("bin_m");
+    min_readings_ = static_cast<std::size_t>(p.get_int("min_readings"));
+    update_period_s_ = p.get_float("update_period_s");
+    gamma_offset_db_ = p.get_float("gamma_offset_db");
+    default_tx_power_dbm_ = p.get_float("default_tx_power_dbm");
+    std_scale_ = p.get_float("std_scale");
+    std_floor_m_ = p.get_float("std_floor_m");
+    turn_rad_ = p.get_float("turn_deg") * std::numbers::pi / 180.0;
+    ambiguous_mass_ = p.get_float("ambiguous_mass");
+    method_ = p.get_string("method");
+    max_tags_ = static_cast<std::size_t>(p.get_int("max_tags"));
+    reg_.n_min = p.get_float("n_min");
+    reg_.n_max = p.get_float("n_max");
+    if (reg_.n_max < reg_.n_min)
+      throw std::runtime_error("locble: n_max (" + std::to_string(reg_.n_max) + ") must be >= n_min (" +
+                               std::to_string(reg_.n_min) + ")");
+    PosteriorOptions po;
+    po.gamma_sd_db = p.get_float("gamma_sd_db");
+    po.n_mean = p.get_float("n_mean");
+    po.n_sd = p.get_float("n_sd");
+    po.shadowing_sd_db = p.get_float("shadowing_sd_db");
+    po.fading_sd_db = p.get_float("fading_sd_db");
+    po.search_radius_m = p.get_float("search_radius_m");
+    po.grid_step_m = p.get_float("grid_step_m");
+    po.min_distance_m = p.get_float("min_distance_m");
+    if (po.grid_step_m > po.search_radius_m)
+      throw std::runtime_error("locble: grid_step_m must not exceed search_radius_m");
+    posterior_.emplace(po);  // validates the rest (std::invalid_argument names the field)
+    cluster_ = p.get_bool("clustering");
+    copt_.segment = static_cast<std::size_t>(p.get_int("cluster_segment"));
+    copt_.window = static_cast<std::size_t>(p.get_int("cluster_window"));
+    copt_.threshold = p.get_float("cluster_threshold");
+    cluster_grid_dt_ = 1.0 / p.get_float("cluster_rate_hz");
+    const std::string topic = p.get_string("topic");
+    if (!topic.empty()) {
+      subscription_ = ctx.link.subscribe(topic + "/motion/+", [this](const LinkMessage& m) { on_motion(m); });
+      subscribed_ = true;
+    }
+  }
+
+  /// [main]
+  std::vector<EventType> subscriptions() const override {
+    return {EventType::BleAdvertisement, EventType::Step, EventType::Attitude};
+  }
+
+  /// [main]
+  void on_event(const Event& event, Publisher& out) override {
+    if (const auto* a = std::get_if<BleAdvertisement>(&event)) {
+      if (device_.empty()) device_ = std::string(a->device.view());
+      if (a->device.view() != device_) return;
+      on_advert(*a);
+      data_t_ = std::max(data_t_, a->t_s);
+    } else if (const auto* s = std::get_if<Step>(&event)) {
+      if (s->device.view() != device_ || !detector_matches(s->detector.view(), steps_detector_, device_)) return;
+      const double stride = std::isfinite(s->stride_m) && s->stride_m > 0.0f ? s->stride_m * stride_scale_ : default_stride_m_;
+      if (!dr_.add_step(s->t_s, stride, s->frequency_hz)) ++bad_steps_;
+      data_t_ = std::max(data_t_, s->t_s);
+    } else if (const auto* at = std::get_if<Attitude>(&event)) {
+      if (at->device.view() != device_ || !detector_matches(at->detector.view(), attitude_detector_, device_)) return;
+      if (!dr_.has_frame()) north_heading0_ = at->heading_rad;
+      dr_.add_heading(at->t_s, at->heading_rad);
+      data_t_ = std::max(data_t_, at->t_s);
+    } else {
+      return;
+    }
+    if (!next_update_t_) next_update_t_ = data_t_ + update_period_s_;
+    if (data_t_ >= *next_update_t_) {
+      publish_all(out, data_t_);
+      *next_update_t_ = data_t_ + update_period_s_;
+    }
+  }
+
+  /// [main] All inputs ended: the final estimate of every tag.
+  void finish(Publisher& out) override {
+    publish_all(out, data_t_);
+    if (bad_steps_ > 0) log_->warn("locble: " + std::to_string(bad_steps_) + " step events out of order or invalid, ignored");
+    if (bad_messages_ > 0) log_->warn("locble: " + std::to_string(bad_messages_) + " malformed motion messages ignored");
+    if (dropped_tags_ > 0)
+      log_->warn("locble: " + std::to_string(dropped_tags_) + " adverts of tags beyond max_tags (" + std::to_string(max_tags_) +
+                 ") ignored");
+    if (!dr_.has_frame()) log_->warn("locble: no heading from attitude detector '" + attitude_detector_ + "': no estimates");
+    else if (dr_.steps() == 0) log_->warn("locble: no steps from step detector '" + steps_detector_ + "': no estimates");
+    for (const auto& [addr, tag] : tags_)
+      if (!tag.last_why.empty()) log_->info("locble: " + addr + ": " + tag.last_why);
+  }
+
+ private:
+  struct Tag {
+    std::array<std::uint8_t, 6> address{};
+    std::vector<Reading> readings;
+    double tx_power_dbm = 0.0;
+    bool has_tx = false;
+    double last_t = -1e300;
+    float last_rssi = 0.0f;
+    std::vector<std::array<double, 3>> motion;  ///< t, east, north (moving-target mode)
+    std::optional<TagEstimate> est;
+    std::string last_why;
+  };
+
+  void on_advert(const BleAdvertisement& a) {
+    if (!std::isfinite(a.rssi_dbm) || !std::isfinite(a.t_s)) return;
+    const std::string key = format_address(a.address);
+    auto it = tags_.find(key);
+    if (it == tags_.end()) {
+      if (tags_.size() >= max_tags_) {
+        ++dropped_tags_;
+        return;
+      }
+      it = tags_.emplace(key, Tag{}).first;
+      it->second.address = a.address;
+    }
+    Tag& t = it->second;
+    // A detector's copy of this advert (ble_rss re-emits each advert with a filtered RSS, same address
+    // and time): the raw reading came first; the regression wants raw readings.
+    if (a.t_s == t.last_t) return;
+    t.last_t = a.t_s;
+    t.last_rssi = a.rssi_dbm;
+    if (a.has_tx_power && std::isfinite(a.tx_power_dbm)) {
+      t.tx_power_dbm = a.tx_power_dbm;
+      t.has_tx = true;
+    }
+    t.readings.push_back({a.t_s, a.rssi_dbm});
+  }
+
+  void on_motion(const LinkMessage& m) {
+    std::string why;
+    const auto msg = decode(m.payload, &why);
+    if (!msg) {
+      ++bad_messages_;
+      log_->debug("locble: motion message ignored: " + why);
+      return;
+    }
+    auto it = tags_.find(format_address(msg->address));
+    if (it == tags_.end()) {
+      if (tags_.size() >= max_tags_) return;
+      it = tags_.emplace(format_address(msg->address), Tag{}).first;
+      it->second.address = msg->address;
+    }
+    auto& mo = it->second.motion;
+    if (!mo.empty() && msg->t_s <= mo.back()[0]) return;
+    mo.push_back({msg->t_s, msg->east_m, msg->north_m});
+  }
+
+  /// The target's displacement at t in the observer's start frame (moving-target mode), 0 when the
+  /// target reports none. North-referenced (x north, y west, locus/dsp/ahrs.hpp) → start frame.
+  Vec2 target_shift(const Tag& t, double time) const {
+    if (t.motion.empty()) return {0.0, 0.0};
+    const auto& mo = t.motion;
+    std::array<double, 3> v = mo.front();
+    if (time >= mo.back()[0]) v = mo.back();
+    else if (time > mo.front()[0]) {
+      const auto it = std::upper_bound(mo.begin(), mo.end(), time, [](double x, const auto& e) { return x < e[0]; });
+      const auto& b = *it;
+      const auto& a = *(it - 1);
+      const double f = (time - a[0]) / (b[0] - a[0]);
+      v = {time, a[1] + f * (b[1] - a[1]), a[2] + f * (b[2] - a[2])};
+    }
+    const double east = v[1], north = v[2], psi = north_heading0_;
+    return {north * std::sin(psi) + east * std::cos(psi), north * std::cos(psi) - east * std::sin(psi)};
+  }
+
+  std::vector<Bin> bins_of(const Tag& t) const {
+    std::vector<Vec2> pos(t.readings.size());
+    std::vector<double> len(t.readings.size());
+    for (std::size_t i = 0; i < t.readings.size(); ++i) {
+      const double time = t.readings[i].t_s;
+      pos[i] = dr_.position_at(time) - target_shift(t, time);
+      len[i] = dr_.path_length_at(time);
+    }
+    return make_bins(t.readings, pos, len, bin_m_);
+  }
+
+  void solve(Tag& t) {
+    t.est.reset();
+    if (t.readings.size() < min_readings_) {
+      t.last_why = std::to_string(t.readings.size()) + " readings (< min_readings " + std::to_string(min_readings_) + ")";
+      return;
+    }
+    const std::vector<Bin> bins = bins_of(t);
+    const std::optional<std::size_t> turn = dr_.turn_step(turn_rad_);
+    Vec2 leg_axis{0.0, 0.0};
+    if (dr_.steps() > 0) leg_axis = Vec2{-std::sin(dr_.step_heading_rad(0)), std::cos(dr_.step_heading_rad(0))};
+    posterior_->set_gamma_mean((t.has_tx ? t.tx_power_dbm : default_tx_power_dbm_) + gamma_offset_db_);
+    TagEstimate e = posterior_->solve(bins, leg_axis);
+    if (!e.ok) {
+      t.last_why = e.why;
+      return;
+    }
+    if (method_ == "regression") {
+      // The paper's estimator: Eq. 2-5 on both legs, mirror resolved by the L (Sec. 5.1); without a
+      // turn yet, the joint fit. The posterior still gives std and confidence.
+      std::optional<Vec2> p;
+      if (turn) {
+        const double t_turn = dr_.step_begin_s(*turn);
+        std::vector<std::size_t> l1, l2;
+        for (std::size_t i = 0; i < bins.size(); ++i) (bins[i].t_s < t_turn ? l1 : l2).push_back(i);
+        p = l_shape(bins, l1, l2, reg_);
+      }
+      if (!p && bins.size() >= 5) {
+        std::vector<Vec2> o;
+        std::vector<double> r;
+        for (const Bin& b : bins) {
+          o.push_back(b.observer_m);
+          r.push_back(b.rssi_dbm);
+        }
+        const RegressionFit f = elliptical_regression(o, r, reg_);
+        if (f.ok) p = f.position_m;
+      }
+      if (!p) {
+        t.last_why = "Eq. 2-5 has no solution on these readings (method: regression)";
+        return;
+      }
+      e.position_m = *p;
+    }
+    t.last_why.clear();
+    t.est = e;
+  }
+
+  void publish_all(Publisher& out, double now) {
+    if (!dr_.has_frame() || dr_.steps() == 0) return;
+    for (auto& [key, t] : tags_) solve(t);
+    if (cluster_) calibrate_clusters();
+    char frame[32];
+    std::snprintf(frame, sizeof frame, "observer_start@%.6f", dr_.frame_time_s());
+    const Vec2 here = dr_.position_at(now);
+    for (auto& [key, t] : tags_) {
+      if (!t.est) continue;
+      const TagEstimate& e = *t.est;
+      Estimate est;
+      est.plugin.assign(instance_);
+      est.reference.assign(device_);
+      est.frame.assign(frame);
+      est.target.assign(key);
+      est.t_s = now;
+      est.position_m = {e.position_m.x(), e.position_m.y(), kNaN};
+      est.dims = 2;
+      const double sd = std::hypot(e.std_m * std_scale_, std_floor_m_);
+      est.std_m = sd;
+      // Guidance: from where the observer is now (same frame), the bearing and the distance to walk.
+      const Vec2 v = e.position_m - here;
+      est.distance_m = v.norm();
+      est.direction_rad = std::atan2(v.y(), v.x());
+      est.distance_std_m = sd / std::numbers::sqrt2;
+      est.direction_std_rad = est.distance_m > 0.0 ? std::min(std::numbers::pi, est.distance_std_m / est.distance_m) : kNaN;
+      est.confidence = static_cast<float>(std::clamp(e.confidence, 0.0, 1.0));
+      if (e.mirror_mass > ambiguous_mass_) est.flags |= kEstimateAmbiguous;
+      if (!dr_.turn_step(turn_rad_) || e.bins < 4) est.flags |= kEstimateWeak;
+      out.publish(est);
+    }
+  }
+
+  /// Sec. 6, Algo. 2: tags whose RSS traces move together (DTW voting) are one cluster; each member's
+  /// position becomes the confidence-weighted mean of the cluster's.
+  void calibrate_clusters() {
+    std::vector<Tag*> ts;
+    for (auto& [k, t] : tags_)
+      if (t.est) ts.push_back(&t);
+    if (ts.size() < 2) return;
+    double t0 = 1e300, t1 = -1e300;
+    for (const Tag* t : ts) {
+      t0 = std::min(t0, t->readings.front().t_s);
+      t1 = std::max(t1, t->readings.back().t_s);
+    }
+    const std::size_t n = static_cast<std::size_t>((t1 - t0) / cluster_grid_dt_) + 1;
+    if (n < copt_.segment + 1) return;
+    // Each trace on a common grid: mean RSS of the readings in each cell, then a 3-cell moving mean
+    // (the filter of Sec. 6 against fading), NaN where a tag was not heard.
+    std::vector<std::vector<float>> traces(ts.size(), std::vector<float>(n, std::numeric_limits<float>::quiet_NaN()));
+    for (std::size_t k = 0; k < ts.size(); ++k) {
+      std::vector<double> sum(n, 0.0);
+      std::vector<int> cnt(n, 0);
+      for (const Reading& r : ts[k]->readings) {
+        const auto i = static_cast<std::size_t>((r.t_s - t0) / cluster_grid_dt_);
+        if (i < n) {
+          sum[i] += r.rssi_dbm;
+          ++cnt[i];
+        }
+      }
+      for (std::size_t i = 0; i < n; ++i) {
+        double s = 0.0;
+        int c = 0;
+        for (std::size_t j = (i == 0 ? 0 : i - 1); j <= std::min(n - 1, i + 1); ++j) {
+          s += sum[j];
+          c += cnt[j];
+        }
+        if (c > 0) traces[k][i] = static_cast<float>(s / c);
+      }
+    }
+    std::vector<Vec2> fused(ts.size());
+    for (std::size_t k = 0; k < ts.size(); ++k) {
+      std::vector<std::vector<float>> others;
+      std::vector<std::size_t> idx;
+      for (std::size_t j = 0; j < ts.size(); ++j)
+        if (j != k) {
+          others.push_back(traces[j]);
+          idx.push_back(j);
+        }
+      const auto members = cluster_members(traces[k], others, copt_);
+      std::vector<Vec2> pos{ts[k]->est->position_m};
+      std::vector<double> w{std::max(ts[k]->est->confidence, 1e-9)};
+      for (std::size_t m : members) {
+        pos.push_back(ts[idx[m]]->est->position_m);
+        w.push_back(std::max(ts[idx[m]]->est->confidence, 1e-9));
+      }
+      fused[k] = fuse(pos, w);
+    }
+    for (std::size_t k = 0; k < ts.size(); ++k) ts[k]->est->position_m = fused[k];
+  }
+
+  Logger* log_ = nullptr;
+  Link* link_ = nullptr;
+  bool subscribed_ = false;
+  std::uint64_t subscription_ = 0;
+  std::string instance_, device_, steps_detector_, attitude_detector_, method_;
+  double stride_scale_ = 1.0, default_stride_m_ = 0.7, bin_m_ = 0.5, update_period_s_ = 1.0;
+  double gamma_offset_db_ = 0.0, default_tx_power_dbm_ = -59.0, std_scale_ = 1.0, std_floor_m_ = 0.0;
+  double turn_rad_ = 0.8, ambiguous_mass_ = 0.3, north_heading0_ = 0.0, cluster_grid_dt_ = 0.1;
+  std::size_t min_readings_ = 10, max_tags_ = 64;
+  std::uint64_t bad_steps_ = 0, bad_messages_ = 0, dropped_tags_ = 0;
+  RegressionOptions reg_;
+  ClusterOptions copt_;
+  bool cluster_ = false;
+  std::optional<PositionPosterior> posterior_;
+  DeadReckoning dr_;
+  std::map<std::string, Tag> tags_;
+  double data_t_ = -1e300;
+  std::optional<double> next_update_t_;
+};
+
+}  // namespace
+
+const ParamSchema& schema() {
+  static const ParamSchema schema{
+      string_param("device", "", "Observer device when the host gives none (\"\" = the first device whose BLE adverts arrive)."),
+      string_param("steps_detector", "steps", "Step events of this detector instance (or <name>_<device>) move the observer."),
+      string_param("attitude_detector", "attitude", "Attitude events of this instance (or <name>_<device>) give its heading."),
+      float_param("stride_scale", 1.0, 0.1, 5.0, "", "Multiplies every detected stride (calibration of the step detector's model)."),
+      float_param("default_stride_m", 0.7, 0.1, 2.0, "m", "Stride used when a step event carries none."),
+      enum_param("method", "posterior", {"posterior", "regression"},
+                 "posterior: the grid posterior mean (solver.hpp); regression: the paper's Eq. 2-5 with the L-shape mirror choice."),
+      float_param("bin_m", 0.5, 0.05, 10.0, "m", "Readings within this much walked distance form one measurement bin."),
+      int_param("min_readings", std::int64_t{10}, 2, 100000, "", "A tag is located once it has this many readings."),
+      float_param("update_period_s", 1.0, 0.05, 3600.0, "s", "Estimates are published every this much data time (and at the end)."),
+      float_param("default_tx_power_dbm", -59.0, -120.0, 20.0, "dBm", "RSS at 1 m assumed for adverts without a TX power field."),
+      float_param("gamma_offset_db", 0.0, -30.0, 30.0, "dB", "Added to the advertised 1 m power: prior mean of Γ (receiver offset)."),
+      float_param("gamma_sd_db", 6.0, 0.1, 50.0, "dB", "Prior 1-sigma of Γ around that mean."),
+      float_param("n_mean", 2.3, 1.0, 6.0, "", "Prior mean of the fading coefficient n."),
+      float_param("n_sd", 0.5, 0.01, 5.0, "", "Prior 1-sigma of n."),
+      float_param("n_min", 1.5, 0.5, 6.0, "", "Eq. 5 search range of n: lowest (method regression)."),
+      float_param("n_max", 5.0, 0.5, 10.0, "", "Eq. 5 search range of n: highest (method regression)."),
+      float_param("shadowing_sd_db", 3.0, 0.0, 30.0, "dB", "Shadowing 1-sigma per bin (correlated along the walk)."),
+      float_param("fading_sd_db", 6.0, 0.0, 30.0, "dB", "Fading 1-sigma per reading (independent)."),
+      float_param("search_radius_m", 20.0, 1.0, 200.0, "m", "Half size of the square searched around the walk."),
+      float_param("grid_step_m", 1.0, 0.05, 10.0, "m", "Posterior grid step (refined 4x around concentrated posteriors)."),
+      float_param("min_distance_m", 0.5, 0.01, 10.0, "m", "Distances below this count as this (near field)."),
+      float_param("std_scale", 1.0, 0.1, 10.0, "", "Multiplies the posterior std (calibration against measured errors, docs/locble.md)."),
+      float_param("std_floor_m", 0.0, 0.0, 100.0, "m", "Added in quadrature to every reported std."),
+      float_param("turn_deg", 45.0, 5.0, 180.0, "deg", "A heading change of this much after the first step starts the second leg."),
+      float_param("ambiguous_mass", 0.3, 0.0, 1.0, "", "Posterior mass across the first leg's line above which the estimate is flagged ambiguous."),
+      int_param("max_tags", std::int64_t{64}, 1, 100000, "", "Tags tracked at once; adverts of more are counted and ignored."),
+      bool_param("clustering", false, "Sec. 6 calibration: fuse the estimates of tags whose RSS traces match (DTW voting)."),
+      int_param("cluster_segment", std::int64_t{10}, 2, 1000, "", "DTW segment length in grid points (paper: 10)."),
+      int_param("cluster_window", std::int64_t{2}, 0, 1000, "", "DTW warping band in grid points."),
+      float_param("cluster_threshold", 6.1, 0.0, 1e6, "dB^2", "LB_Keogh and DTW threshold per segment (paper: 6.1)."),
+      float_param("cluster_rate_hz", 10.0, 0.5, 100.0, "Hz", "Grid the RSS traces are put on for DTW."),
+      string_param("topic", "locble", "Link topic prefix of moving targets' motion (<topic>/motion/<address>); \"\" = none."),
+  };
+  return schema;
+}
+
+const locus_plugin_descriptor* descriptor() {
+  static const locus_plugin_descriptor d{
+      LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_LOCALIZER, "locble", "0.1.0",
+      "LocBLE: BLE tags located from RSS along the observer's L-shaped walk (paper 003)", 0,
+      [] { return &schema(); }, nullptr, [] { return static_cast<Localizer*>(new LocBleLocalizer); }};
+  return &d;
+}
+
+}  // namespace locus::plugins::locble
