@@ -222,18 +222,29 @@ std::optional<Vec2> l_shape(std::span<const Bin> bins, std::span<const std::size
   for (int l = 0; l < 2; ++l) {
     const auto& idx = legs[l];
     if (idx.size() < 4) return std::nullopt;
-    const Vec2 origin = bins[idx.front()].observer_m;
-    Vec2 dir = bins[idx.back()].observer_m - origin;
-    if (dir.norm() < 0.5) return std::nullopt;
-    dir.normalize();
+    // The leg's line: principal axis of its bins (a bin straddling the corner barely tilts it), and
+    // only the bins on that line (within 0.25 m): the straight fit sees the along-leg coordinate only.
+    Vec2 origin{0.0, 0.0};
+    for (std::size_t i : idx) origin += bins[i].observer_m;
+    origin /= static_cast<double>(idx.size());
+    Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
+    for (std::size_t i : idx) {
+      const Vec2 d = bins[i].observer_m - origin;
+      scatter += d * d.transpose();
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(scatter);
+    Vec2 dir = eig.eigenvectors().col(1);
+    if (eig.eigenvalues()[1] < 0.25 * 0.25 * static_cast<double>(idx.size()) / 12.0) return std::nullopt;  // no extent
     const Vec2 left{-dir.y(), dir.x()};
     std::vector<Vec2> local;
     std::vector<double> rss;
     for (std::size_t i : idx) {
       const Vec2 d = bins[i].observer_m - origin;
+      if (std::abs(d.dot(left)) > 0.25) continue;
       local.emplace_back(d.dot(dir), 0.0);
       rss.push_back(bins[i].rssi_dbm);
     }
+    if (local.size() < 4) return std::nullopt;
     RegressionOptions o = opt;
     o.straight = true;
     const RegressionFit f = elliptical_regression(local, rss, o);
