@@ -27,7 +27,7 @@ Vec2 step_direction(double heading_rad) { return {-std::sin(heading_rad), std::c
 
 /// log10 for positive normal floats, |error| < 2e-5 (a degree-5 fit of log2 on the mantissa); the
 /// posterior evaluates it cells x bins times, and the model's own noise is dB, so this is plenty.
-inline float fast_log10(float x) noexcept {
+__attribute__((always_inline)) inline float fast_log10(float x) noexcept {
   std::uint32_t bits;
   std::memcpy(&bits, &x, sizeof bits);
   const float e = static_cast<float>(static_cast<int>((bits >> 23) & 0xFFu) - 127);
@@ -38,6 +38,26 @@ inline float fast_log10(float x) noexcept {
   // log2(1 + t) on [0, 1)
   const float p = t * (1.4425449f + t * (-0.7181452f + t * (0.4575485f + t * (-0.2779042f + t * (0.1217970f + t * -0.0258411f)))));
   return (e + p) * 0.30102999566f;
+}
+
+/// One grid row's sums for one bin: for every cell i, L = −10·log10(max(d, d_min)) with
+/// d² = (xs + i·step)² + dy2, then sl += w·L, sll += w·L², srl += w·r·L. The hot loop of the
+/// posterior (cells x bins per tag and update): kept branch-free and compiled for vectorisation
+/// (-O2 alone does not vectorise it; docs/locble.md "Speed").
+__attribute__((optimize("O3", "no-trapping-math"))) void accumulate_row(float xs, float step, float dy2, float dmin2,
+                                                                      float w, float r, int nx, float* __restrict sl,
+                                                                      float* __restrict sll,
+                                                                      float* __restrict srl) noexcept {
+  for (int i = 0; i < nx; ++i) {
+    const float dx = xs + static_cast<float>(i) * step;
+    const float e2 = dx * dx + dy2;
+    const float d2 = e2 > dmin2 ? e2 : dmin2;  // not std::max: it is not inlined under this attribute
+    const float l = -5.0f * fast_log10(d2);
+    const float wl = w * l;
+    sl[i] += wl;
+    sll[i] += wl * l;
+    srl[i] += wl * r;
+  }
 }
 
 }  // namespace
@@ -323,7 +343,7 @@ TagEstimate PositionPosterior::solve(std::span<const Bin> bins, const Vec2& leg_
     const double bg = sr + g0 * ig, bn = srl + n0 * in;
     const double det = a * c - b * b;
     const double quad = (c * bg * bg - 2.0 * b * bg * bn + a * bn * bn) / det;
-    return -0.5 * (konst - quad) - 0.5 * std::log(det);
+    return -0.5 * (konst - quad) - 0.5 * 2.302585093 * static_cast<double>(fast_log10(static_cast<float>(det)));
   };
 
   // Evaluates a grid (x0 + i·step, y0 + j·step), i < nx, j < ny, into logml_ and returns its moments.
@@ -342,16 +362,7 @@ TagEstimate PositionPosterior::solve(std::span<const Bin> bins, const Vec2& leg_
         float* psl = sl + static_cast<std::size_t>(j) * static_cast<std::size_t>(nx);
         float* psll = sll + static_cast<std::size_t>(j) * static_cast<std::size_t>(nx);
         float* psrl = srl + static_cast<std::size_t>(j) * static_cast<std::size_t>(nx);
-        const float xs = static_cast<float>(x0) - bx[k], st = static_cast<float>(step);
-        for (int i = 0; i < nx; ++i) {
-          const float dx = xs + static_cast<float>(i) * st;
-          const float d2 = std::max(dx * dx + dy2, dmin2);
-          const float l = -5.0f * fast_log10(d2);  // −10·log10(d)
-          const float wl = w * l;
-          psl[i] += wl;
-          psll[i] += wl * l;
-          psrl[i] += wl * r;
-        }
+        accumulate_row(static_cast<float>(x0) - bx[k], static_cast<float>(step), dy2, dmin2, w, r, nx, psl, psll, psrl);
       }
     }
     Moments mo;
@@ -365,9 +376,12 @@ TagEstimate PositionPosterior::solve(std::span<const Bin> bins, const Vec2& leg_
         mo.map_y = y0 + static_cast<double>(c / static_cast<std::size_t>(nx)) * step;
       }
     }
+    // Second pass: the cell probabilities (stored in place for the mirror statistic) and moments.
     for (int j = 0; j < ny; ++j)
       for (int i = 0; i < nx; ++i) {
-        const double p = std::exp(static_cast<double>(sl[static_cast<std::size_t>(j) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(i)]) - mo.max_log);
+        float& cell = sl[static_cast<std::size_t>(j) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(i)];
+        const double p = std::exp(static_cast<float>(static_cast<double>(cell) - mo.max_log));
+        cell = static_cast<float>(p);
         const double x = x0 + i * step, y = y0 + j * step;
         mo.sum += p;
         mo.mx += p * x;
@@ -391,7 +405,7 @@ TagEstimate PositionPosterior::solve(std::span<const Bin> bins, const Vec2& leg_
     est.map_m = {m.map_x, m.map_y};
   };
   finish_moments(mo, step);
-  // Mirror statistic on the coarse grid (still in logml_): mass on the other side of the first leg's
+  // Mirror statistic on the coarse grid (its cell probabilities are still in logml_): mass on the other side of the first leg's
   // line (through the origin) from the mean.
   if (leg_axis.norm() > 0.5) {
     const Vec2 ax = leg_axis.normalized();
@@ -401,17 +415,18 @@ TagEstimate PositionPosterior::solve(std::span<const Bin> bins, const Vec2& leg_
     for (int j = 0; j < n; ++j)
       for (int i = 0; i < n; ++i) {
         const double x = centre.x() + (i - half) * step, y = centre.y() + (j - half) * step;
-        const double p = std::exp(static_cast<double>(logml_[static_cast<std::size_t>(j) * static_cast<std::size_t>(n) + static_cast<std::size_t>(i)]) - mo.max_log);
+        const double p = logml_[static_cast<std::size_t>(j) * static_cast<std::size_t>(n) + static_cast<std::size_t>(i)];
         total += p;
         if ((ax.x() * y - ax.y() * x) * side_mean < 0.0) other += p;
       }
     est.mirror_mass = total > 0.0 ? other / total : 0.0;
   }
-  // A concentrated posterior (std within a few cells): again on a 4x finer grid around it.
-  if (est.std_m < 3.0 * step) {
-    const double fine = step / 4.0;
-    const double box = std::max(3.0 * est.std_m, 2.0 * step);
-    const int fh = static_cast<int>(std::ceil(box / fine));
+  // A concentrated posterior (std under 2 cells): again on a finer grid of 25 x 25 cells spanning
+  // ±3 std around the most probable cell (cell = std/4), so that the mean and covariance of a peak
+  // narrower than the coarse grid are not quantised.
+  if (est.std_m < 2.0 * step) {
+    const double fine = std::max(est.std_m / 4.0, 0.02);
+    const int fh = 12;
     mo = evaluate(est.map_m.x() - fh * fine, est.map_m.y() - fh * fine, fine, 2 * fh + 1, 2 * fh + 1);
     finish_moments(mo, fine);
   }
