@@ -20,6 +20,7 @@
 #include <variant>
 #include <vector>
 
+#include "locus/dsp/rss_anf.hpp"
 #include "messages.hpp"
 #include "solver.hpp"
 
@@ -82,6 +83,10 @@ class LocBleLocalizer final : public Localizer {
     copt_.window = static_cast<std::size_t>(p.get_int("cluster_window"));
     copt_.threshold = p.get_float("cluster_threshold");
     cluster_grid_dt_ = 1.0 / p.get_float("cluster_rate_hz");
+    anf_.grid_rate_hz = p.get_float("cluster_rate_hz");
+    anf_.lowpass_hz = p.get_float("anf_lowpass_hz");
+    if (anf_.lowpass_hz >= 0.5 * anf_.grid_rate_hz)
+      throw std::runtime_error("locble: anf_lowpass_hz must be below half of cluster_rate_hz");
     const std::string topic = p.get_string("topic");
     if (!topic.empty()) {
       subscription_ = ctx.link.subscribe(topic + "/motion/+", [this](const LinkMessage& m) { on_motion(m); });
@@ -314,27 +319,25 @@ class LocBleLocalizer final : public Localizer {
     }
     const std::size_t n = static_cast<std::size_t>((t1 - t0) / cluster_grid_dt_) + 1;
     if (n < copt_.segment + 1) return;
-    // Each trace on a common grid: mean RSS of the readings in each cell, then a 3-cell moving mean
-    // (the filter of Sec. 6 against fading), NaN where a tag was not heard.
+    // Each trace through the paper's ANF (Butterworth + adaptive Kalman, locus/dsp/rss_anf.hpp, the
+    // filter of the ble_rss detector), then on a common grid by linear interpolation between packets
+    // (NaN outside a tag's span and across gaps longer than 1 s).
     std::vector<std::vector<float>> traces(ts.size(), std::vector<float>(n, std::numeric_limits<float>::quiet_NaN()));
     for (std::size_t k = 0; k < ts.size(); ++k) {
-      std::vector<double> sum(n, 0.0);
-      std::vector<int> cnt(n, 0);
+      dsp::RssAnf anf(anf_);
+      std::vector<double> ft, fv;
       for (const Reading& r : ts[k]->readings) {
-        const auto i = static_cast<std::size_t>((r.t_s - t0) / cluster_grid_dt_);
-        if (i < n) {
-          sum[i] += r.rssi_dbm;
-          ++cnt[i];
-        }
+        ft.push_back(r.t_s);
+        anf.filter(r.t_s, r.rssi_dbm);
+        fv.push_back(anf.lowpass_db());  // the smooth (Butterworth) part: the AKF output keeps fading
       }
+      std::size_t j = 0;
       for (std::size_t i = 0; i < n; ++i) {
-        double s = 0.0;
-        int c = 0;
-        for (std::size_t j = (i == 0 ? 0 : i - 1); j <= std::min(n - 1, i + 1); ++j) {
-          s += sum[j];
-          c += cnt[j];
-        }
-        if (c > 0) traces[k][i] = static_cast<float>(s / c);
+        const double t = t0 + static_cast<double>(i) * cluster_grid_dt_;
+        while (j + 1 < ft.size() && ft[j + 1] < t) ++j;
+        if (j + 1 >= ft.size() || t < ft[j] || ft[j + 1] - ft[j] > 1.0) continue;
+        const double f = (t - ft[j]) / std::max(ft[j + 1] - ft[j], 1e-9);
+        traces[k][i] = static_cast<float>(fv[j] + f * (fv[j + 1] - fv[j]));
       }
     }
     std::vector<Vec2> fused(ts.size());
@@ -370,6 +373,7 @@ class LocBleLocalizer final : public Localizer {
   std::uint64_t bad_steps_ = 0, bad_messages_ = 0, dropped_tags_ = 0;
   RegressionOptions reg_;
   ClusterOptions copt_;
+  dsp::RssAnfOptions anf_;
   bool cluster_ = false;
   std::optional<PositionPosterior> posterior_;
   DeadReckoning dr_;
@@ -413,7 +417,8 @@ const ParamSchema& schema() {
       int_param("cluster_segment", std::int64_t{10}, 2, 1000, "", "DTW segment length in grid points (paper: 10)."),
       int_param("cluster_window", std::int64_t{2}, 0, 1000, "", "DTW warping band in grid points."),
       float_param("cluster_threshold", 6.1, 0.0, 1e6, "dB^2", "LB_Keogh and DTW threshold per segment (paper: 6.1)."),
-      float_param("cluster_rate_hz", 10.0, 0.5, 100.0, "Hz", "Grid the RSS traces are put on for DTW."),
+      float_param("cluster_rate_hz", 10.0, 0.5, 100.0, "Hz", "Grid the RSS traces are filtered and compared on (DTW)."),
+      float_param("anf_lowpass_hz", 0.5, 0.01, 50.0, "Hz", "Butterworth cutoff of the ANF the traces go through (ble_rss default)."),
       string_param("topic", "locble", "Link topic prefix of moving targets' motion (<topic>/motion/<address>); \"\" = none."),
   };
   return schema;
