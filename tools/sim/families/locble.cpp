@@ -14,9 +14,10 @@
 // true 1 m power that is not the advertised one, spatially correlated shadowing over 2 m, Rician
 // fading per packet, a per-receiver offset, bursty (Gilbert-Elliott) loss, whole dBm).
 // `walk=long` walks 2.5-4.5 m per leg (the foreign scenes' 4-6 steps) instead of the paper's.
-// No audio. Truth: truth.csv (observer, tags), truth_steps.csv.
+// No audio. Truth: truth.csv (observer, tags), truth_steps.csv, truth_ble_env.csv (class per tag, 0.1 s).
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 
 #include "locus/sim/families.hpp"
@@ -202,7 +203,22 @@ Simulation make_locble(const FamilyOptions& opts) {
   sim.duration_s = opts.duration_s.value_or(walk->end_s() + 0.5);
   sim.acoustics.noise.enabled = false;
   sim.extra_files["truth_steps.csv"] = truth_steps_csv({{phone.id, walk.get()}});
-  sim.environment_yaml = "propagation: " + env + ", turn: " + turn + ", truth_steps: truth_steps.csv";
+  // The propagation class of every tag's link every 0.1 s (true time): labels for EnvAware training
+  // (`locus train locble`) and for measuring it; never read by a localizer.
+  {
+    std::string csv = "t_true,tag,env\n";
+    static const char* kLabel[3] = {"LOS", "pLOS", "NLOS"};
+    for (double t = 0.0; t < walk->end_s() + 0.5; t += 0.1)
+      for (const auto& e : sim.emitters) {
+        const Propagation pr = envfn(e.id, e.trajectory->pose(t).position_m, walk->pose(t).position_m, t);
+        char line[96];
+        std::snprintf(line, sizeof line, "%.3f,%s,%s\n", t, e.id.c_str(), kLabel[static_cast<int>(pr)]);
+        csv += line;
+      }
+    sim.extra_files["truth_ble_env.csv"] = csv;
+  }
+  sim.environment_yaml = "propagation: " + env + ", turn: " + turn +
+                         ", truth_steps: truth_steps.csv, truth_ble_env: truth_ble_env.csv";
   return sim;
 }
 
