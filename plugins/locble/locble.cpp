@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "locus/dsp/rss_anf.hpp"
+#include "envaware.hpp"
 #include "messages.hpp"
 #include "solver.hpp"
 
@@ -87,6 +88,8 @@ class LocBleLocalizer final : public Localizer {
     anf_.lowpass_hz = p.get_float("anf_lowpass_hz");
     if (anf_.lowpass_hz >= 0.5 * anf_.grid_rate_hz)
       throw std::runtime_error("locble: anf_lowpass_hz must be below half of cluster_rate_hz");
+    const std::string model = p.get_string("envaware_model");
+    if (!model.empty()) envaware_ = load_envaware_model(model);  // errors name the file and the field
     const std::string topic = p.get_string("topic");
     if (!topic.empty()) {
       subscription_ = ctx.link.subscribe(topic + "/motion/+", [this](const LinkMessage& m) { on_motion(m); });
@@ -136,8 +139,12 @@ class LocBleLocalizer final : public Localizer {
                  ") ignored");
     if (!dr_.has_frame()) log_->warn("locble: no heading from attitude detector '" + attitude_detector_ + "': no estimates");
     else if (dr_.steps() == 0) log_->warn("locble: no steps from step detector '" + steps_detector_ + "': no estimates");
-    for (const auto& [addr, tag] : tags_)
+    for (const auto& [addr, tag] : tags_) {
       if (!tag.last_why.empty()) log_->info("locble: " + addr + ": " + tag.last_why);
+      if (envaware_ && tag.env_class >= 0)
+        log_->info("locble: " + addr + ": EnvAware class " + kEnvClasses[static_cast<std::size_t>(tag.env_class)] + ", " +
+                   std::to_string(tag.restarts) + " updates restarted after an environment change");
+    }
   }
 
  private:
@@ -151,6 +158,8 @@ class LocBleLocalizer final : public Localizer {
     std::vector<std::array<double, 3>> motion;  ///< t, east, north (moving-target mode)
     std::optional<TagEstimate> est;
     std::string last_why;
+    int env_class = -1;         ///< EnvAware class of the latest window (-1 = none / off)
+    std::uint64_t restarts = 0; ///< updates that used only the readings since an environment change
   };
 
   void on_advert(const BleAdvertisement& a) {
@@ -232,7 +241,41 @@ class LocBleLocalizer final : public Localizer {
       t.last_why = std::to_string(t.readings.size()) + " readings (< min_readings " + std::to_string(min_readings_) + ")";
       return;
     }
-    const std::vector<Bin> bins = bins_of(t);
+    std::vector<Bin> bins = bins_of(t);
+    if (envaware_) {
+      // EnvAware (Sec. 4): classify consecutive windows; after the last change of class that held
+      // for at least two windows, restart the regression on the readings since the change (when they
+      // are enough: min_readings and 3 bins), as the paper starts a new regression model.
+      const double w = envaware_->window_s;
+      std::vector<std::pair<double, int>> cls;  // window start, class
+      std::size_t i = 0;
+      std::vector<double> x;
+      while (i < t.readings.size()) {
+        const double t0 = t.readings[i].t_s;
+        x.clear();
+        std::size_t j = i;
+        for (; j < t.readings.size() && t.readings[j].t_s < t0 + w; ++j) x.push_back(t.readings[j].rssi_dbm);
+        if (x.size() >= 4) cls.emplace_back(t0, envaware_->predict(envaware_features(x)));
+        i = j;
+      }
+      t.env_class = cls.empty() ? -1 : cls.back().second;
+      for (std::size_t k = cls.size(); k-- > 1;) {
+        if (cls[k].second == cls[k - 1].second) continue;
+        if (k + 2 > cls.size()) break;  // the newest class holds for one window only: not yet a change
+        Tag sub = t;
+        sub.readings.erase(std::remove_if(sub.readings.begin(), sub.readings.end(),
+                                          [&](const Reading& r) { return r.t_s < cls[k].first; }),
+                           sub.readings.end());
+        if (sub.readings.size() >= min_readings_) {
+          std::vector<Bin> since = bins_of(sub);
+          if (since.size() >= 3) {
+            bins = std::move(since);
+            ++t.restarts;
+          }
+        }
+        break;
+      }
+    }
     const std::optional<std::size_t> turn = dr_.turn_step(turn_rad_);
     Vec2 leg_axis{0.0, 0.0};
     if (dr_.steps() > 0) leg_axis = Vec2{-std::sin(dr_.step_heading_rad(0)), std::cos(dr_.step_heading_rad(0))};
@@ -376,6 +419,7 @@ class LocBleLocalizer final : public Localizer {
   dsp::RssAnfOptions anf_;
   bool cluster_ = false;
   std::optional<PositionPosterior> posterior_;
+  std::optional<EnvAwareModel> envaware_;
   DeadReckoning dr_;
   std::map<std::string, Tag> tags_;
   double data_t_ = -1e300;
@@ -419,6 +463,8 @@ const ParamSchema& schema() {
       float_param("cluster_threshold", 6.1, 0.0, 1e6, "dB^2", "LB_Keogh and DTW threshold per segment (paper: 6.1)."),
       float_param("cluster_rate_hz", 10.0, 0.5, 100.0, "Hz", "Grid the RSS traces are filtered and compared on (DTW)."),
       float_param("anf_lowpass_hz", 0.5, 0.01, 50.0, "Hz", "Butterworth cutoff of the ANF the traces go through (ble_rss default)."),
+      string_param("envaware_model", "",
+                   "EnvAware model (locus train locble; e.g. config/locble-envaware.yaml, relative to the working directory); \"\" = off."),
       string_param("topic", "locble", "Link topic prefix of moving targets' motion (<topic>/motion/<address>); \"\" = none."),
   };
   return schema;

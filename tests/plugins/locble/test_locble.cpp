@@ -384,3 +384,75 @@ TEST(LocBlePlugin, BadParamsAndMessagesAreRefusedOrCounted) {
 }
 
 }  // namespace
+
+// ------------------------------------------------------------------------------------ EnvAware
+
+#include <filesystem>
+#include <fstream>
+
+#include "locble/envaware.hpp"
+
+namespace {
+
+TEST(LocBleEnvAware, FeaturesOfAKnownWindow) {
+  const std::vector<double> x = {-70, -72, -74, -76, -78};
+  const auto f = lb::envaware_features(x);
+  EXPECT_DOUBLE_EQ(f[0], -74.0);      // mean
+  EXPECT_DOUBLE_EQ(f[1], 8.0);        // variance (population)
+  EXPECT_NEAR(f[2], 0.0, 1e-12);      // skewness
+  EXPECT_NEAR(f[3], -1.3, 1e-12);     // excess kurtosis of 5 equally spaced values
+  EXPECT_DOUBLE_EQ(f[4], -78.0);
+  EXPECT_DOUBLE_EQ(f[5], -76.0);
+  EXPECT_DOUBLE_EQ(f[6], -74.0);
+  EXPECT_DOUBLE_EQ(f[7], -72.0);
+  EXPECT_DOUBLE_EQ(f[8], -70.0);
+  const std::vector<double> one = {-70};
+  EXPECT_THROW(lb::envaware_features(one), std::invalid_argument);
+  EXPECT_EQ(lb::envaware_class("plos"), 1);
+  EXPECT_EQ(lb::envaware_class("NLOS"), 2);
+  EXPECT_FALSE(lb::envaware_class("maybe").has_value());
+}
+
+TEST(LocBleEnvAware, ModelRoundTripAndBadFiles) {
+  const auto dir = std::filesystem::temp_directory_path() / "locble_envaware_test";
+  std::filesystem::create_directories(dir);
+  lb::EnvAwareModel m;
+  Eigen::MatrixXd w = Eigen::MatrixXd::Zero(3, lb::kEnvFeatures);
+  w(0, 0) = 1.0;   // LOS: loud
+  w(2, 0) = -1.0;  // NLOS: quiet
+  m.mean = Eigen::VectorXd::Constant(lb::kEnvFeatures, -70.0);
+  m.scale = Eigen::VectorXd::Constant(lb::kEnvFeatures, 10.0);
+  m.svm = locus::dsp::LinearSvm(w, Eigen::Vector3d(0.0, 0.1, 0.0));
+  m.svm.set_standardization(m.mean, m.scale);
+  const auto good = (dir / "good.yaml").string();
+  std::ofstream(good) << lb::envaware_model_yaml(m, "test");
+  const lb::EnvAwareModel r = lb::load_envaware_model(good);
+  std::array<double, lb::kEnvFeatures> loud{}, quiet{};
+  loud.fill(-50.0);
+  quiet.fill(-90.0);
+  EXPECT_EQ(r.predict(loud), 0);
+  EXPECT_EQ(r.predict(quiet), 2);
+  const std::string text = lb::envaware_model_yaml(m, "test");
+  struct Bad {
+    std::string from, to, field;
+  };
+  for (const Bad& b : {Bad{"format: locble-envaware/1", "format: other", "format"},
+                       Bad{"classes: [LOS, pLOS, NLOS]", "classes: [A, B, C]", "classes"},
+                       Bad{"mean: [", "mean: [x, ", "mean"}, Bad{"bias: [", "bias: [1, ", "bias"}}) {
+    std::string t = text;
+    t.replace(t.find(b.from), b.from.size(), b.to);
+    const auto path = (dir / "bad.yaml").string();
+    std::ofstream(path) << t;
+    try {
+      lb::load_envaware_model(path);
+      ADD_FAILURE() << "accepted a model with a bad " << b.field;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(b.field), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("bad.yaml"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_THROW(lb::load_envaware_model((dir / "missing.yaml").string()), std::runtime_error);
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
