@@ -36,6 +36,13 @@ Simulation make_locble(const FamilyOptions& opts) {
                                 std::to_string(clustered));
   const std::string env = opts.get_choice("env", "world", {"los", "plos", "nlos", "mixed", "world"});
   const std::string walk_kind = opts.get_choice("walk", "paper", {"paper", "long"});
+  // Each condition of env=world can be switched off alone (same layout and draws otherwise), to
+  // measure what it costs a localizer (docs/locble.md, "Simulator").
+  const bool c_walls = opts.get_bool("walls", true), c_people = opts.get_bool("people", true);
+  const bool c_bystanders = opts.get_bool("bystanders", true), c_links = opts.get_bool("links", true);
+  const bool c_bursts = opts.get_bool("bursts", true), c_fading = opts.get_bool("fading", true);
+  const bool c_shadowing = opts.get_bool("shadowing", true), c_rx_offset = opts.get_bool("rx_offset", true);
+  const bool c_loss = opts.get_bool("loss", true), c_quantize = opts.get_bool("quantize", true);
   const std::string turn = opts.get_choice("turn", "left", {"left", "right"});
   const double interval_s = opts.get_double("interval_s", 0.1, 0.02, 10.0);
   opts.finish("locble");
@@ -118,11 +125,11 @@ Simulation make_locble(const FamilyOptions& opts) {
       if (world.bernoulli(std::min(0.6, 0.3 * hard))) {  // a wall across part of the views to the walk
         const Eigen::Vector2d c = tag + world.uniform(0.3, 0.6) * to_walk + world.uniform(-1.5, 1.5) * perp;
         const double half = world.uniform(1.0, 2.5);
-        walls.push_back({c - half * perp, c + half * perp});
+        if (c_walls) walls.push_back({c - half * perp, c + half * perp});
       }
       if (world.bernoulli(0.3)) {  // a person standing near the line of sight
         const Eigen::Vector2d c = tag + world.uniform(0.2, 0.8) * to_walk + world.uniform(-0.8, 0.8) * perp;
-        people.push_back({c - 0.25 * perp, c + 0.25 * perp});
+        if (c_people) people.push_back({c - 0.25 * perp, c + 0.25 * perp});
       }
     }
     const int nb = static_cast<int>(world.integer(1, 1 + static_cast<long long>(2 * hard)));
@@ -130,7 +137,8 @@ Simulation make_locble(const FamilyOptions& opts) {
       const double a = world.uniform(0.0, 2.0 * std::numbers::pi), sp = world.uniform(0.7, 1.4);
       const Eigen::Vector2d p0 = mid + world.uniform(3.0, 10.0) * Eigen::Vector2d(std::cos(a), std::sin(a));
       const Eigen::Vector2d aim = mid + world.uniform(-3.0, 3.0) * Eigen::Vector2d(-std::sin(a), std::cos(a));
-      bystanders.push_back({p0, sp * (aim - p0).normalized(), walk->walk_start_s() + world.uniform(-3.0, 6.0)});
+      const Walker b{p0, sp * (aim - p0).normalized(), walk->walk_start_s() + world.uniform(-3.0, 6.0)};
+      if (c_bystanders) bystanders.push_back(b);
     }
   }
   auto crosses = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Seg& s) {
@@ -169,6 +177,10 @@ Simulation make_locble(const FamilyOptions& opts) {
   BleChannelParams bp;
   bp.rx_offset_db = layout.normal(0.0, 3.0);
   bp.loss_probability = 0.05 * prof.imu_noise_scale * 2.0;  // easy 5 %, normal 10 %, hard 20 %
+  if (!c_rx_offset) bp.rx_offset_db = 0.0;
+  if (!c_loss) bp.loss_probability = 0.0;
+  bp.fading = c_fading;
+  bp.quantize = c_quantize;
   if (env == "world") {
     // Exponents and losses of the indoor 2.4 GHz literature; the per-link spread is what makes every
     // tag's effective (Γ, n) unknown to the localizer.
@@ -179,6 +191,8 @@ Simulation make_locble(const FamilyOptions& opts) {
     bp.channel_offset_db = {0.0, 0.0, 0.0};
     bp.burst_enter_probability = 0.04 * prof.imu_noise_scale;
     bp.burst_exit_probability = 0.3;
+    if (!c_bursts) bp.burst_enter_probability = 0.0;
+    if (!c_shadowing) bp.shadowing_std_db = {0.0, 0.0, 0.0};
     for (const auto& e : sim.emitters) {
       BleTagChannel c;
       for (std::size_t k = 0; k < 3; ++k) {
@@ -187,7 +201,7 @@ Simulation make_locble(const FamilyOptions& opts) {
         c.channel_offset_db[k] = world.normal(0.0, 1.5);
       }
       c.tx_bias_db = world.normal(2.0, 2.0);
-      bp.tags[e.id] = c;
+      if (c_links) bp.tags[e.id] = c;
     }
   }
 
@@ -238,6 +252,16 @@ const Family& locble() {
        {"env", "los|plos|nlos|mixed|world", "world",
         "propagation (mixed: NLOS then LOS, people crossing; world: walls, people, bystanders, per-link channels)"},
        {"walk", "paper|long", "paper", "leg lengths: paper 2-3 m + 1.5-2.5 m; long 2.5-4.5 m each (foreign scenes)"},
+       {"walls", "bool", "1", "env=world: walls (0 = none; every condition below can be switched off alone)"},
+       {"people", "bool", "1", "env=world: people standing near lines of sight"},
+       {"bystanders", "bool", "1", "env=world: walking bystanders"},
+       {"links", "bool", "1", "env=world: per-link exponents, static shadowing, channel offsets, tx bias"},
+       {"bursts", "bool", "1", "env=world: bursty loss"},
+       {"fading", "bool", "1", "Rician fading per packet"},
+       {"shadowing", "bool", "1", "env=world: spatially correlated shadowing"},
+       {"rx_offset", "bool", "1", "receiver offset"},
+       {"loss", "bool", "1", "random packet loss"},
+       {"quantize", "bool", "1", "whole dBm"},
        {"turn", "left|right", "left", "direction of the L's turn (the target is on that side)"},
        {"interval_s", "double", "0.1", "advertising interval (paper: 10 Hz)"}},
       make_locble};
