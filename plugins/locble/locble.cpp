@@ -79,6 +79,10 @@ class LocBleLocalizer final : public Localizer {
     if (po.grid_step_m > po.search_radius_m)
       throw std::runtime_error("locble: grid_step_m must not exceed search_radius_m");
     posterior_.emplace(po);  // validates the rest (std::invalid_argument names the field)
+    shadowing_sd_db_ = po.shadowing_sd_db;
+    fading_sd_db_ = po.fading_sd_db;
+    adaptive_noise_ = p.get_bool("adaptive_noise");
+    min_noise_ratio_ = p.get_float("min_noise_ratio");
     cluster_ = p.get_bool("clustering");
     copt_.segment = static_cast<std::size_t>(p.get_int("cluster_segment"));
     copt_.window = static_cast<std::size_t>(p.get_int("cluster_window"));
@@ -281,6 +285,16 @@ class LocBleLocalizer final : public Localizer {
     if (dr_.steps() > 0) leg_axis = Vec2{-std::sin(dr_.step_heading_rad(0)), std::cos(dr_.step_heading_rad(0))};
     posterior_->set_gamma_mean((t.has_tx ? t.tx_power_dbm : default_tx_power_dbm_) + gamma_offset_db_);
     TagEstimate e = posterior_->solve(bins, leg_axis);
+    if (adaptive_noise_ && e.ok && e.noise_ratio < 0.9) {
+      // The readings fit better than the configured noise says (a clean link): solve again with the
+      // noise scaled to what the residuals show (not below min_noise_ratio of it), so that a clean
+      // tag is not blurred into a ring by a noise level meant for a bad one.
+      const double r = std::max(e.noise_ratio, min_noise_ratio_);
+      posterior_->set_noise(shadowing_sd_db_ * r, fading_sd_db_ * r);
+      const TagEstimate again = posterior_->solve(bins, leg_axis);
+      posterior_->set_noise(shadowing_sd_db_, fading_sd_db_);
+      if (again.ok) e = again;
+    }
     if (!e.ok) {
       t.last_why = e.why;
       return;
@@ -420,6 +434,8 @@ class LocBleLocalizer final : public Localizer {
   bool cluster_ = false;
   std::optional<PositionPosterior> posterior_;
   std::optional<EnvAwareModel> envaware_;
+  double shadowing_sd_db_ = 3.0, fading_sd_db_ = 6.0, min_noise_ratio_ = 0.1;
+  bool adaptive_noise_ = true;
   DeadReckoning dr_;
   std::map<std::string, Tag> tags_;
   double data_t_ = -1e300;
@@ -449,6 +465,8 @@ const ParamSchema& schema() {
       float_param("n_max", 5.0, 0.5, 10.0, "", "Eq. 5 search range of n: highest (method regression)."),
       float_param("shadowing_sd_db", 3.0, 0.0, 30.0, "dB", "Shadowing 1-sigma per bin (correlated along the walk)."),
       float_param("fading_sd_db", 6.0, 0.0, 30.0, "dB", "Fading 1-sigma per reading (independent)."),
+      bool_param("adaptive_noise", true, "Solve again with the noise scaled down when the residuals show a cleaner link."),
+      float_param("min_noise_ratio", 0.1, 0.01, 1.0, "", "Lowest scaling of the configured noise (adaptive_noise)."),
       float_param("search_radius_m", 20.0, 1.0, 200.0, "m", "Half size of the square searched around the walk."),
       float_param("grid_step_m", 1.0, 0.05, 10.0, "m", "Posterior grid step (refined 4x around concentrated posteriors)."),
       float_param("min_distance_m", 0.5, 0.01, 10.0, "m", "Distances below this count as this (near field)."),

@@ -455,6 +455,12 @@ TagEstimate PositionPosterior::solve(std::span<const Bin> bins, const Vec2& leg_
     var += bw[k] * e * e;
   }
   var /= sw;
+  double chi2 = 0.0;
+  for (std::size_t k = 0; k < nb; ++k) {
+    const double e = bins[k].rssi_dbm - theta[0] - theta[1] * lk[k];
+    chi2 += bw[k] * e * e;
+  }
+  est.noise_ratio = nb > 4 ? std::sqrt(chi2 / static_cast<double>(nb - 4)) : 1.0;  // 4 fitted: x, y, Γ, n
   est.residual_mean_db = mu;
   est.residual_sd_db = std::sqrt(var);
   const double sigma = std::max(est.residual_sd_db, 0.5);

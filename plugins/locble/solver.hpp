@@ -161,6 +161,9 @@ struct TagEstimate {
   double residual_mean_db = 0.0, residual_sd_db = 0.0;  ///< δ_RS at the estimate (paper's confidence)
   double confidence = 0.0;        ///< P(μ) with P ~ N(0, σ), scaled to 1 at μ = 0
   double mirror_mass = 0.0;       ///< posterior mass on the other side of the first leg's line
+  /// sqrt of the residuals' chi² per degree of freedom at the estimate under the noise model: < 1 =
+  /// the readings are cleaner than shadowing_sd_db / fading_sd_db assume.
+  double noise_ratio = 1.0;
   int bins = 0;
 };
 
@@ -174,6 +177,11 @@ class PositionPosterior {
   TagEstimate solve(std::span<const Bin> bins, const Vec2& leg_axis);
   const PosteriorOptions& options() const noexcept { return opt_; }
   void set_gamma_mean(double gamma_mean_dbm) noexcept { opt_.gamma_mean_dbm = gamma_mean_dbm; }
+  /// [main] Noise of the next solves (both >= 0, not both 0).
+  void set_noise(double shadowing_sd_db, double fading_sd_db) noexcept {
+    opt_.shadowing_sd_db = shadowing_sd_db;
+    opt_.fading_sd_db = fading_sd_db;
+  }
 
  private:
   PosteriorOptions opt_;
