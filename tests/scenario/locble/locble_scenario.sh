@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # LocBLE scenario test (docs/locble.md, "Accuracy"): `locus simulate locble` (env=world, the default)
 # on fixed seeds through the shipped config (config/locble.yaml), scored by `locus eval --metric
-# locble`. Guards, not the issue's bar: the campaign mean over 20 seeds is 3.9 m (bar 1.5 m, not met,
+# locble`. Guards, not the issue's bar: the campaign mean over 20 seeds is 3.5 m (bar 1.5 m, not met,
 # docs/locble.md "Limits"); these seeds are ones where the method is at or near the bar today, so a
 # change that breaks the dead reckoning, the frame or the posterior fails here.
-#   - seeds 1, 5, 16: every tag located, mean final error <= 2.0 m;
-#   - seeds 4, 9: every tag located, mean final error <= 3.5 m.
+#   - seeds 1, 14, 15 (measured 0.49 / 1.33 / 1.51 m): every tag located, mean final error <= 2.0 m;
+#   - seeds 5, 9 (1.64 / 1.59 m): every tag located, mean final error <= 2.5 m.
+# Seed-to-seed spread is large (0.5-7.8 m over seeds 1-20), so these are chosen, not representative.
 #   locble_scenario.sh LOCUS_BIN SOURCE_DIR
 set -euo pipefail
 locus="$1"
@@ -31,8 +32,8 @@ run_case() {  # seed max-mean-error-m
 }
 
 run_case 1 2.0
-run_case 5 2.0
-run_case 16 2.0
-run_case 4 3.5
-run_case 9 3.5
+run_case 14 2.0
+run_case 15 2.0
+run_case 5 2.5
+run_case 9 2.5
 exit "$fail"
