@@ -79,8 +79,6 @@ class LocBleLocalizer final : public Localizer {
     if (po.grid_step_m > po.search_radius_m)
       throw std::runtime_error("locble: grid_step_m must not exceed search_radius_m");
     posterior_.emplace(po);  // validates the rest (std::invalid_argument names the field)
-    shadowing_sd_db_ = po.shadowing_sd_db;
-    fading_sd_db_ = po.fading_sd_db;
     adaptive_noise_ = p.get_bool("adaptive_noise");
     min_noise_ratio_ = p.get_float("min_noise_ratio");
     cluster_ = p.get_bool("clustering");
@@ -284,17 +282,9 @@ class LocBleLocalizer final : public Localizer {
     Vec2 leg_axis{0.0, 0.0};
     if (dr_.steps() > 0) leg_axis = Vec2{-std::sin(dr_.step_heading_rad(0)), std::cos(dr_.step_heading_rad(0))};
     posterior_->set_gamma_mean((t.has_tx ? t.tx_power_dbm : default_tx_power_dbm_) + gamma_offset_db_);
-    TagEstimate e = posterior_->solve(bins, leg_axis);
-    if (adaptive_noise_ && e.ok && e.noise_ratio < 0.9) {
-      // The readings fit better than the configured noise says (a clean link): solve again with the
-      // noise scaled to what the residuals show (not below min_noise_ratio of it), so that a clean
-      // tag is not blurred into a ring by a noise level meant for a bad one.
-      const double r = std::max(e.noise_ratio, min_noise_ratio_);
-      posterior_->set_noise(shadowing_sd_db_ * r, fading_sd_db_ * r);
-      const TagEstimate again = posterior_->solve(bins, leg_axis);
-      posterior_->set_noise(shadowing_sd_db_, fading_sd_db_);
-      if (again.ok) e = again;
-    }
+    // Coarse over the whole square, then fine around it; with adaptive_noise the fine solve uses the
+    // noise the residuals show when the link is cleaner than configured (solver.hpp).
+    TagEstimate e = posterior_->solve_coarse_to_fine(bins, leg_axis, adaptive_noise_, min_noise_ratio_);
     if (!e.ok) {
       t.last_why = e.why;
       return;
@@ -434,7 +424,7 @@ class LocBleLocalizer final : public Localizer {
   bool cluster_ = false;
   std::optional<PositionPosterior> posterior_;
   std::optional<EnvAwareModel> envaware_;
-  double shadowing_sd_db_ = 3.0, fading_sd_db_ = 6.0, min_noise_ratio_ = 0.1;
+  double min_noise_ratio_ = 0.1;
   bool adaptive_noise_ = true;
   DeadReckoning dr_;
   std::map<std::string, Tag> tags_;

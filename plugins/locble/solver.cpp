@@ -306,7 +306,7 @@ struct Moments {
 
 }  // namespace
 
-TagEstimate PositionPosterior::solve(std::span<const Bin> bins, const Vec2& leg_axis) {
+TagEstimate PositionPosterior::solve(std::span<const Bin> bins, const Vec2& leg_axis, const TagEstimate* wider) {
   TagEstimate est;
   est.bins = static_cast<int>(bins.size());
   if (bins.size() < 2) {
@@ -394,7 +394,11 @@ TagEstimate PositionPosterior::solve(std::span<const Bin> bins, const Vec2& leg_
   };
 
   const double step = opt_.grid_step_m;
-  const int half = static_cast<int>(std::ceil(opt_.search_radius_m / step));
+  int half = static_cast<int>(std::ceil(opt_.search_radius_m / step));
+  if (wider != nullptr && wider->ok && 3.0 * wider->std_m + step < opt_.search_radius_m) {
+    centre = wider->position_m;
+    half = static_cast<int>(std::ceil((3.0 * wider->std_m + step) / step));
+  }
   Moments mo = evaluate(centre.x() - half * step, centre.y() - half * step, step, 2 * half + 1, 2 * half + 1);
   auto finish_moments = [&](const Moments& m, double cell) {
     est.position_m = {m.mx / m.sum, m.my / m.sum};
@@ -470,6 +474,25 @@ TagEstimate PositionPosterior::solve(std::span<const Bin> bins, const Vec2& leg_
   est.ok = std::isfinite(est.position_m.x()) && std::isfinite(est.position_m.y()) && std::isfinite(est.std_m);
   if (!est.ok) est.why = "the posterior is not finite (degenerate readings)";
   return est;
+}
+
+TagEstimate PositionPosterior::solve_coarse_to_fine(std::span<const Bin> bins, const Vec2& leg_axis,
+                                                    bool adaptive_noise, double min_noise_ratio) {
+  const PosteriorOptions saved = opt_;
+  opt_.grid_step_m = std::min(2.0 * saved.grid_step_m, saved.search_radius_m);
+  const TagEstimate coarse = solve(bins, leg_axis);
+  opt_ = saved;
+  if (!coarse.ok) return coarse;
+  if (adaptive_noise && coarse.noise_ratio < 0.9) {
+    const double r = std::max(coarse.noise_ratio, min_noise_ratio);
+    opt_.shadowing_sd_db *= r;
+    opt_.fading_sd_db *= r;
+  }
+  TagEstimate fine = solve(bins, leg_axis, &coarse);
+  opt_ = saved;
+  if (!fine.ok) return coarse;
+  fine.mirror_mass = coarse.mirror_mass;
+  return fine;
 }
 
 // ---------------------------------------------------------------------------------------------------

@@ -174,7 +174,15 @@ class PositionPosterior {
   explicit PositionPosterior(const PosteriorOptions& opt);
   /// [main] Allocation-free once the grid is sized (first call). `leg_axis`: unit direction of the
   /// first leg (the mirror line through the origin); zero = no mirror statistic. Needs >= 2 bins.
-  TagEstimate solve(std::span<const Bin> bins, const Vec2& leg_axis);
+  /// `wider`: a solve of the same bins with more noise (adaptive noise): this posterior is narrower,
+  /// so the grid only spans `wider`'s mean ± 3 of its std (when that is inside the search square).
+  TagEstimate solve(std::span<const Bin> bins, const Vec2& leg_axis, const TagEstimate* wider = nullptr);
+  /// [main] What the plugin runs: a first solve on a grid twice as coarse over the whole square, then
+  /// the solve at grid_step_m over its mean ± 3 std — with the noise scaled down to what the first
+  /// solve's residuals show when they are cleaner than the model (sqrt(χ²/dof) < 0.9; not below
+  /// `min_noise_ratio`) if `adaptive_noise`. The mirror mass is the first solve's (whole square).
+  TagEstimate solve_coarse_to_fine(std::span<const Bin> bins, const Vec2& leg_axis, bool adaptive_noise,
+                                   double min_noise_ratio);
   const PosteriorOptions& options() const noexcept { return opt_; }
   void set_gamma_mean(double gamma_mean_dbm) noexcept { opt_.gamma_mean_dbm = gamma_mean_dbm; }
   /// [main] Noise of the next solves (both >= 0, not both 0).

@@ -65,6 +65,27 @@ void BM_LocBleUpdate(benchmark::State& state) {
 }
 BENCHMARK(BM_LocBleUpdate)->ArgName("tags")->Arg(1)->Arg(20)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 
+// What the plugin runs per tag (solve_coarse_to_fine, adaptive_noise on: its default).
+void BM_LocBleUpdatePlugin(benchmark::State& state) {
+  const Scenario s = make(static_cast<int>(state.range(0)));
+  lb::PosteriorOptions po;
+  po.grid_step_m = 1.0;
+  lb::PositionPosterior post(po);
+  for (auto _ : state) {
+    for (const auto& readings : s.tags) {
+      std::vector<lb::Vec2> pos(readings.size());
+      std::vector<double> len(readings.size());
+      for (std::size_t i = 0; i < readings.size(); ++i) {
+        pos[i] = s.dr.position_at(readings[i].t_s);
+        len[i] = s.dr.path_length_at(readings[i].t_s);
+      }
+      const auto bins = lb::make_bins(readings, pos, len, 0.5);
+      benchmark::DoNotOptimize(post.solve_coarse_to_fine(bins, lb::Vec2(0, 1), true, 0.1));
+    }
+  }
+}
+BENCHMARK(BM_LocBleUpdatePlugin)->ArgName("tags")->Arg(1)->Arg(20)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
+
 void BM_LocBleRegression(benchmark::State& state) {
   const Scenario s = make(1);
   std::vector<lb::Vec2> o;
