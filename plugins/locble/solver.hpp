@@ -47,7 +47,8 @@ namespace locus::plugins::locble {
 
 using Vec2 = Eigen::Vector2d;
 
-/// The observer's path from its steps and headings (see the file comment for the frame).
+/// The observer's path from its steps and headings (see the file comment for the frame). Every
+/// method is [main] (the localizer's dispatcher thread; adding allocates).
 class DeadReckoning {
  public:
   /// [main] A heading sample (rad, counter-clockwise; any branch: samples are unwrapped). The first
@@ -196,7 +197,7 @@ class PositionPosterior {
   std::vector<float> logml_;
 };
 
-/// Sec. 6 (Algo. 2): which of `others` move like `target`. Each trace is a series of RSS values on
+/// [main] Sec. 6 (Algo. 2): which of `others` move like `target`. Each trace is a series of RSS values on
 /// one common time grid (NaN = no data); traces are differenced (so offsets between tags do not
 /// matter), split into segments of `segment` points following the target's, each segment tested by
 /// LB_Keogh then DTW (squared cost, band `window`) against `threshold`; a trace whose segments match in
@@ -209,7 +210,7 @@ struct ClusterOptions {
 std::vector<std::size_t> cluster_members(std::span<const float> target, const std::vector<std::vector<float>>& others,
                                          const ClusterOptions& opt = {});
 
-/// Algo. 2, last step: the confidence-weighted mean of the candidate positions (weights p_i / Σ p).
+/// [main] Algo. 2, last step: the confidence-weighted mean of the candidate positions (weights p_i / Σ p).
 /// Throws std::invalid_argument when the sizes differ or no weight is positive.
 Vec2 fuse(std::span<const Vec2> positions, std::span<const double> weights);
 
