@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <iomanip>
 #include <sstream>
 #include <stdexcept>
@@ -61,9 +62,17 @@ int EnvAwareModel::predict(const std::array<double, kEnvFeatures>& f) const {
 }
 
 EnvAwareModel load_envaware_model(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw std::runtime_error(path + ": cannot read the EnvAware model (no such file?)");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return parse_envaware_model(ss.str(), path);
+}
+
+EnvAwareModel parse_envaware_model(const std::string& text, const std::string& path) {
   YAML::Node y;
   try {
-    y = YAML::LoadFile(path);
+    y = YAML::Load(text);
   } catch (const std::exception& e) {
     throw std::runtime_error(path + ": cannot read the EnvAware model: " + e.what());
   }

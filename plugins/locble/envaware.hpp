@@ -38,6 +38,10 @@ struct EnvAwareModel {
 /// [main] Reads a model file; throws std::runtime_error naming the file and the field that is missing
 /// or malformed (and what was expected).
 EnvAwareModel load_envaware_model(const std::string& path);
+/// [main] The same from YAML text; `origin` names it in errors.
+EnvAwareModel parse_envaware_model(const std::string& text, const std::string& origin);
+/// The shipped model (config/locble-envaware.yaml, compiled in by plugins/CMakeLists.txt).
+const std::string& builtin_envaware_yaml();
 /// [main] The model as YAML text (what load_envaware_model reads).
 std::string envaware_model_yaml(const EnvAwareModel& m, const std::string& comment);
 

@@ -91,7 +91,8 @@ class LocBleLocalizer final : public Localizer {
     if (anf_.lowpass_hz >= 0.5 * anf_.grid_rate_hz)
       throw std::runtime_error("locble: anf_lowpass_hz must be below half of cluster_rate_hz");
     const std::string model = p.get_string("envaware_model");
-    if (!model.empty()) envaware_ = load_envaware_model(model);  // errors name the file and the field
+    if (model == "builtin") envaware_ = parse_envaware_model(builtin_envaware_yaml(), "builtin EnvAware model (config/locble-envaware.yaml)");
+    else if (!model.empty()) envaware_ = load_envaware_model(model);  // errors name the file and the field
     const std::string topic = p.get_string("topic");
     if (!topic.empty()) {
       subscription_ = ctx.link.subscribe(topic + "/motion/+", [this](const LinkMessage& m) { on_motion(m); });
@@ -472,7 +473,7 @@ const ParamSchema& schema() {
       float_param("cluster_rate_hz", 10.0, 0.5, 100.0, "Hz", "Grid the RSS traces are filtered and compared on (DTW)."),
       float_param("anf_lowpass_hz", 0.5, 0.01, 50.0, "Hz", "Butterworth cutoff of the ANF the traces go through (ble_rss default)."),
       string_param("envaware_model", "",
-                   "EnvAware model (locus train locble; e.g. config/locble-envaware.yaml, relative to the working directory); \"\" = off."),
+                   "EnvAware model: builtin (config/locble-envaware.yaml as built), a file written by locus train locble (relative to the working directory), or \"\" = off."),
       string_param("topic", "locble", "Link topic prefix of moving targets' motion (<topic>/motion/<address>); \"\" = none."),
   };
   return schema;
