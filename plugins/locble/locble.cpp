@@ -389,21 +389,15 @@ class LocBleLocalizer final : public Localizer {
       }
     }
     std::vector<Vec2> fused(ts.size());
+    const auto member = cluster_matrix(traces, copt_);
     for (std::size_t k = 0; k < ts.size(); ++k) {
-      std::vector<std::vector<float>> others;
-      std::vector<std::size_t> idx;
-      for (std::size_t j = 0; j < ts.size(); ++j)
-        if (j != k) {
-          others.push_back(traces[j]);
-          idx.push_back(j);
-        }
-      const auto members = cluster_members(traces[k], others, copt_);
       std::vector<Vec2> pos{ts[k]->est->position_m};
       std::vector<double> w{std::max(ts[k]->est->confidence, 1e-9)};
-      for (std::size_t m : members) {
-        pos.push_back(ts[idx[m]]->est->position_m);
-        w.push_back(std::max(ts[idx[m]]->est->confidence, 1e-9));
-      }
+      for (std::size_t j = 0; j < ts.size(); ++j)
+        if (j != k && member[k][j]) {
+          pos.push_back(ts[j]->est->position_m);
+          w.push_back(std::max(ts[j]->est->confidence, 1e-9));
+        }
       fused[k] = fuse(pos, w);
     }
     for (std::size_t k = 0; k < ts.size(); ++k) ts[k]->est->position_m = fused[k];

@@ -533,6 +533,49 @@ std::vector<std::size_t> cluster_members(std::span<const float> target, const st
   return members;
 }
 
+std::vector<std::vector<bool>> cluster_matrix(const std::vector<std::vector<float>>& traces, const ClusterOptions& opt) {
+  if (opt.segment < 2) throw std::invalid_argument("cluster_matrix: segment must be >= 2");
+  const std::size_t n = traces.size();
+  std::vector<std::vector<bool>> m(n, std::vector<bool>(n, false));
+  if (n == 0) return m;
+  const std::size_t len = traces[0].size();
+  for (const auto& t : traces)
+    if (t.size() != len) throw std::invalid_argument("cluster_matrix: every trace must be on one grid (same length)");
+  if (len < opt.segment + 1) return m;
+  const std::size_t segs = (len - 1) / opt.segment, seg = opt.segment;
+  // Differences, a finite flag and the LB_Keogh envelope per trace and segment, once.
+  std::vector<std::vector<float>> d(n, std::vector<float>(segs * seg)), up(n, std::vector<float>(segs * seg)),
+      lo(n, std::vector<float>(segs * seg));
+  std::vector<std::vector<char>> finite(n, std::vector<char>(segs, 1));
+  for (std::size_t k = 0; k < n; ++k)
+    for (std::size_t g = 0; g < segs; ++g) {
+      for (std::size_t i = 0; i < seg; ++i) {
+        const float v = traces[k][g * seg + i + 1] - traces[k][g * seg + i];
+        d[k][g * seg + i] = v;
+        if (!std::isfinite(v)) finite[k][g] = 0;
+      }
+      if (finite[k][g])
+        dsp::lb_keogh_envelope(std::span<const float>(d[k].data() + g * seg, seg), opt.window,
+                               std::span<float>(up[k].data() + g * seg, seg), std::span<float>(lo[k].data() + g * seg, seg));
+    }
+  dsp::Dtw dtw(seg);
+  for (std::size_t a = 0; a < n; ++a)
+    for (std::size_t b = a + 1; b < n; ++b) {
+      std::size_t comparable = 0, matched = 0;
+      for (std::size_t g = 0; g < segs; ++g) {
+        if (!finite[a][g] || !finite[b][g]) continue;
+        ++comparable;
+        const std::span<const float> sa(d[a].data() + g * seg, seg), sb(d[b].data() + g * seg, seg);
+        if (dsp::lb_keogh(sb, std::span<const float>(up[a].data() + g * seg, seg), std::span<const float>(lo[a].data() + g * seg, seg),
+                          dsp::DtwCost::Squared, opt.threshold) > opt.threshold)
+          continue;
+        if (dtw.distance(sa, sb, opt.window, opt.threshold) <= opt.threshold) ++matched;
+      }
+      if (comparable > 0 && 2 * matched > comparable) m[a][b] = m[b][a] = true;
+    }
+  return m;
+}
+
 Vec2 fuse(std::span<const Vec2> positions, std::span<const double> weights) {
   if (positions.size() != weights.size()) throw std::invalid_argument("fuse: positions and weights differ in size");
   double sw = 0.0;

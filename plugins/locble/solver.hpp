@@ -210,6 +210,11 @@ struct ClusterOptions {
 std::vector<std::size_t> cluster_members(std::span<const float> target, const std::vector<std::vector<float>>& others,
                                          const ClusterOptions& opt = {});
 
+/// [main] cluster_members() for every trace against every other at once: m[i][j] = trace j is a
+/// member of trace i's cluster. DTW is symmetric and LB_Keogh only prunes, so the matrix is symmetric
+/// and each pair is compared once (half the work, no copies). All traces on one grid (same length).
+std::vector<std::vector<bool>> cluster_matrix(const std::vector<std::vector<float>>& traces, const ClusterOptions& opt = {});
+
 /// [main] Algo. 2, last step: the confidence-weighted mean of the candidate positions (weights p_i / Σ p).
 /// Throws std::invalid_argument when the sizes differ or no weight is positive.
 Vec2 fuse(std::span<const Vec2> positions, std::span<const double> weights);

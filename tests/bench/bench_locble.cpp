@@ -87,7 +87,8 @@ void BM_LocBleUpdatePlugin(benchmark::State& state) {
 BENCHMARK(BM_LocBleUpdatePlugin)->ArgName("tags")->Arg(1)->Arg(20)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 
 // Sec. 6 clustering at one update of 20 tags: every tag's 12 s trace (10 Hz grid) against the 19
-// others (LB_Keogh + DTW per 10-point segment); the ANF that makes the traces is in bench_motion.
+// others (cluster_matrix: LB_Keogh + DTW per 10-point segment, each pair once); the ANF that makes
+// the traces is in bench_motion.
 void BM_LocBleClusters(benchmark::State& state) {
   const int tags = static_cast<int>(state.range(0));
   std::mt19937_64 rng(3);
@@ -96,14 +97,7 @@ void BM_LocBleClusters(benchmark::State& state) {
   for (int k = 0; k < tags; ++k)
     for (int i = 0; i < 120; ++i)
       traces[static_cast<std::size_t>(k)].push_back(-70.0f + 5.0f * std::sin(0.05f * static_cast<float>(i) * (1.0f + 0.1f * static_cast<float>(k % 3))) + g(rng));
-  for (auto _ : state) {
-    for (int k = 0; k < tags; ++k) {
-      std::vector<std::vector<float>> others;
-      for (int j = 0; j < tags; ++j)
-        if (j != k) others.push_back(traces[static_cast<std::size_t>(j)]);
-      benchmark::DoNotOptimize(lb::cluster_members(traces[static_cast<std::size_t>(k)], others));
-    }
-  }
+  for (auto _ : state) benchmark::DoNotOptimize(lb::cluster_matrix(traces));
 }
 BENCHMARK(BM_LocBleClusters)->ArgName("tags")->Arg(20)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 

@@ -242,6 +242,16 @@ TEST(LocBleCluster, MatchesTracesThatMoveTogether) {
   EXPECT_EQ(m[0], 0u);
   std::vector<float> wrong_len(10, 0.0f);
   EXPECT_THROW(lb::cluster_members(target, {wrong_len}), std::invalid_argument);
+  // The all-pairs form agrees with the target-vs-others form, and is symmetric.
+  const lb::ClusterOptions o{.segment = 10, .window = 2, .threshold = 0.5};
+  const auto mm = lb::cluster_matrix({target, near, far, gappy}, o);
+  EXPECT_TRUE(mm[0][1]);
+  EXPECT_TRUE(mm[1][0]);
+  EXPECT_FALSE(mm[0][2]);
+  EXPECT_FALSE(mm[0][3]);
+  for (std::size_t i = 0; i < 4; ++i)
+    for (std::size_t j = 0; j < 4; ++j) EXPECT_EQ(mm[i][j], mm[j][i]);
+  EXPECT_THROW(lb::cluster_matrix({target, wrong_len}), std::invalid_argument);
 }
 
 TEST(LocBleCluster, FuseWeightsByConfidence) {
