@@ -140,8 +140,13 @@ class LocBleLocalizer final : public Localizer {
     if (dropped_tags_ > 0)
       log_->warn("locble: " + std::to_string(dropped_tags_) + " adverts of tags beyond max_tags (" + std::to_string(max_tags_) +
                  ") ignored");
-    if (!dr_.has_frame()) log_->warn("locble: no heading from attitude detector '" + attitude_detector_ + "': no estimates");
-    else if (dr_.steps() == 0) log_->warn("locble: no steps from step detector '" + steps_detector_ + "': no estimates");
+    // Only an observer (a device that heard tags) misses its motion; other devices are not its business.
+    if (!tags_.empty() && !dr_.has_frame())
+      log_->warn("locble: " + std::to_string(tags_.size()) + " tags heard but no heading from attitude detector '" +
+                 attitude_detector_ + "': no estimates");
+    else if (!tags_.empty() && dr_.steps() == 0)
+      log_->warn("locble: " + std::to_string(tags_.size()) + " tags heard but no steps from step detector '" +
+                 steps_detector_ + "': no estimates (the observer must walk)");
     for (const auto& [addr, tag] : tags_) {
       if (!tag.last_why.empty()) log_->info("locble: " + addr + ": " + tag.last_why);
       if (envaware_ && tag.env_class >= 0)

@@ -390,6 +390,18 @@ TEST(LocBlePlugin, BadParamsAndMessagesAreRefusedOrCounted) {
   ok->finish(out);  // no data: no estimate, warnings, no crash
   EXPECT_TRUE(out.estimates.empty());
   EXPECT_TRUE(host.log.contains("malformed motion messages"));
+  EXPECT_FALSE(host.log.contains("no heading"));  // heard no tag: not an observer, nothing to say
+  // An observer that heard a tag but got no motion says why it has no estimate.
+  std::unique_ptr<Localizer> obs(lb::descriptor()->create_localizer());
+  obs->configure(params(), ctx);
+  BleAdvertisement b;
+  b.device.assign("O");
+  b.t_s = 1.0;
+  b.address = {1, 2, 3, 4, 5, 6};
+  b.rssi_dbm = -70.0f;
+  obs->on_event(Event{b}, out);
+  obs->finish(out);
+  EXPECT_TRUE(out.estimates.empty());
   EXPECT_TRUE(host.log.contains("no heading"));
 }
 
