@@ -488,6 +488,9 @@ TagEstimate PositionPosterior::solve_coarse_to_fine(std::span<const Bin> bins, c
     opt_.shadowing_sd_db *= r;
     opt_.fading_sd_db *= r;
   }
+  // A wide posterior needs no finer cells than the coarse ones; a narrow one is refined inside
+  // solve() (std under 2 cells: 25 x 25 cells of std/4).
+  if (coarse.std_m > 4.0 * saved.grid_step_m) opt_.grid_step_m = std::min(2.0 * saved.grid_step_m, saved.search_radius_m);
   TagEstimate fine = solve(bins, leg_axis, &coarse);
   opt_ = saved;
   if (!fine.ok) return coarse;
