@@ -341,12 +341,14 @@ class LocBleLocalizer final : public Localizer {
       est.frame.assign(frame);
       est.target.assign(key);
       est.t_s = now;
-      est.position_m = {e.position_m.x(), e.position_m.y(), kNaN};
+      // Moving target: the fit gives where it started (p_i = b_i − a_i); it is now that plus its motion.
+      const Vec2 where = e.position_m + target_shift(t, now);
+      est.position_m = {where.x(), where.y(), kNaN};
       est.dims = 2;
       const double sd = std::hypot(e.std_m * std_scale_, std_floor_m_);
       est.std_m = sd;
       // Guidance: from where the observer is now (same frame), the bearing and the distance to walk.
-      const Vec2 v = e.position_m - here;
+      const Vec2 v = where - here;
       est.distance_m = v.norm();
       est.direction_rad = std::atan2(v.y(), v.x());
       est.distance_std_m = sd / std::numbers::sqrt2;

@@ -376,6 +376,73 @@ TEST(LocBlePlugin, LocatesATagFromEventsInMemory) {
   EXPECT_GT(e.confidence, 0.0f);
 }
 
+TEST(LocBlePlugin, MovingTargetPublishesItsMotion) {
+  // The observer walks an L; the tag drifts at 0.15 m/s along the frame's x and publishes its
+  // displacement (east, north) over the link; the estimate is where the tag is at the end.
+  test::TestHost host;
+  HostContext ctx = host.context("locble", "O");
+  std::unique_ptr<Localizer> loc(lb::descriptor()->create_localizer());
+  loc->configure(params({{"gamma_sd_db", 1.0}, {"n_mean", 2.0}, {"n_sd", 0.1}, {"shadowing_sd_db", 0.5},
+                         {"fading_sd_db", 1.0}, {"grid_step_m", 0.5}, {"clustering", false}}),
+                 ctx);
+  CollectingPublisher out;
+  const double psi = 1.0;  // raw heading of the frame's y axis (north-referenced: x north, y west)
+  const Vec2 start(2.0, 3.0), vel(0.15, 0.0);
+  const std::array<std::uint8_t, 6> addr{0xC4, 0x2C, 0x03, 0x09, 0x08, 0x07};
+  const double step_s = 0.55, stride = 0.7;
+  lb::DeadReckoning truth;
+  truth.add_heading(0.0, psi);
+  std::vector<double> step_t;
+  for (int k = 0; k < 10; ++k) step_t.push_back(1.0 + k * step_s);
+  for (int k = 0; k < 10; ++k) {
+    const double h = k < 5 ? psi : psi + std::numbers::pi / 2;
+    for (double s = step_t[k] - step_s + 0.05; s <= step_t[k] + 1e-9; s += 0.05) truth.add_heading(s, h);
+    truth.add_step(step_t[k], stride, 1.0 / step_s);
+  }
+  int steps = 0;
+  for (double t = 0.0; t < 10.0; t += 0.05) {
+    Attitude a;
+    a.device.assign("O");
+    a.detector.assign("attitude");
+    a.t_s = t;
+    a.heading_rad = static_cast<float>(t < step_t[5] - step_s + 0.05 ? psi : psi + std::numbers::pi / 2);
+    loc->on_event(Event{a}, out);
+    if (steps < 10 && t >= step_t[static_cast<std::size_t>(steps)]) {
+      Step s;
+      s.device.assign("O");
+      s.detector.assign("steps");
+      s.t_s = step_t[static_cast<std::size_t>(steps)];
+      s.stride_m = static_cast<float>(stride);
+      s.frequency_hz = static_cast<float>(1.0 / step_s);
+      loc->on_event(Event{s}, out);
+      ++steps;
+    }
+    const Vec2 d = vel * t;  // displacement in the frame -> east, north (x north, y west reference)
+    lb::TargetMotion m;
+    m.address = addr;
+    m.t_s = t;
+    m.east_m = d.x() * std::cos(psi) - d.y() * std::sin(psi);
+    m.north_m = d.x() * std::sin(psi) + d.y() * std::cos(psi);
+    ctx.link.publish("locble/motion/" + lb::format_address(addr), lb::encode(m));
+    if (static_cast<int>(std::lround(t * 20)) % 2 == 0) {
+      BleAdvertisement b;
+      b.device.assign("O");
+      b.t_s = t;
+      b.address = addr;
+      b.rssi_dbm = static_cast<float>(model_rss(start + d, truth.position_at(t), -60.0, 2.0));
+      b.tx_power_dbm = -60.0f;
+      b.has_tx_power = true;
+      loc->on_event(Event{b}, out);
+    }
+  }
+  loc->finish(out);
+  ASSERT_FALSE(out.estimates.empty());
+  const Estimate& e = out.estimates.back();
+  const Vec2 now = start + vel * e.t_s;
+  EXPECT_LT(std::hypot(e.position_m[0] - now.x(), e.position_m[1] - now.y()), 0.5)
+      << e.position_m[0] << " " << e.position_m[1] << " vs " << now.transpose();
+}
+
 TEST(LocBlePlugin, BadParamsAndMessagesAreRefusedOrCounted) {
   test::TestHost host;
   HostContext ctx = host.context("locble", "O");
