@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "locus/dsp/iir.hpp"
+#include "locus/dsp/rss_anf.hpp"
 #include "motion_common/motion_common.hpp"
 
 namespace locus::plugins::ble_rss {
@@ -17,21 +17,23 @@ class BleRssDetector final : public Detector {
  public:
   void configure(const StreamInfo&, const Params& p, HostContext& ctx) override {
     log_ = &ctx.log;
-    grid_dt_ = 1.0 / p.get_float("grid_rate_hz");
-    const double cutoff = p.get_float("lowpass_hz");
-    if (cutoff >= 0.5 / grid_dt_)
-      throw std::runtime_error("ble_rss: lowpass_hz (" + std::to_string(cutoff) + ") must be below half of grid_rate_hz (" +
-                               std::to_string(0.5 / grid_dt_) + ")");
-    const auto sos = dsp::butter_lowpass(static_cast<int>(p.get_int("lowpass_order")), cutoff, 1.0 / grid_dt_);
+    dsp::RssAnfOptions o;
+    o.grid_rate_hz = p.get_float("grid_rate_hz");
+    o.lowpass_hz = p.get_float("lowpass_hz");
+    if (o.lowpass_hz >= 0.5 * o.grid_rate_hz)
+      throw std::runtime_error("ble_rss: lowpass_hz (" + std::to_string(o.lowpass_hz) + ") must be below half of grid_rate_hz (" +
+                               std::to_string(0.5 * o.grid_rate_hz) + ")");
+    o.lowpass_order = static_cast<int>(p.get_int("lowpass_order"));
+    o.restart_gap_s = p.get_float("restart_gap_s");
+    o.akf_alpha = p.get_float("akf_alpha");
+    o.akf_alpha_r = p.get_float("akf_alpha_r");
+    o.measurement_var_db2 = p.get_float("measurement_var_db2");
+    o.r_min_db2 = p.get_float("r_min_db2");
+    o.q_min_db2 = p.get_float("q_min_db2");
     timeout_s_ = p.get_float("tag_timeout_s");
-    restart_gap_s_ = p.get_float("restart_gap_s");
-    alpha_ = p.get_float("akf_alpha");
-    alpha_r_ = p.get_float("akf_alpha_r");
-    r0_ = p.get_float("measurement_var_db2");
-    r_min_ = p.get_float("r_min_db2");
-    q_min_ = p.get_float("q_min_db2");
+    const dsp::RssAnf prototype(o);
     tags_.assign(static_cast<std::size_t>(p.get_int("max_tags")), Tag{});
-    for (Tag& t : tags_) t.bf = dsp::SosFilter(sos);
+    for (Tag& t : tags_) t.anf = prototype;
     dropped_tags_ = dropped_events_ = 0;
   }
 
@@ -48,7 +50,8 @@ class BleRssDetector final : public Detector {
         continue;
       }
       BleAdvertisement f = a;
-      f.rssi_dbm = static_cast<float>(filter(*tag, a.t_s, a.rssi_dbm));
+      f.rssi_dbm = static_cast<float>(tag->anf.filter(a.t_s, a.rssi_dbm));
+      tag->last_t = a.t_s;
       if (!out.emit(Event{f})) ++dropped_events_;
     }
   }
@@ -67,9 +70,8 @@ class BleRssDetector final : public Detector {
     bool used = false;
     DeviceId device;
     std::array<std::uint8_t, 6> address{};
-    dsp::SosFilter bf;
-    double last_t = 0.0, last_rssi = 0.0, next_grid_t = 0.0, bf_out = 0.0, bf_prev = 0.0;
-    double x = 0.0, p = 0.0, q = 0.0, r = 0.0;
+    dsp::RssAnf anf;  // Butterworth + AKF (locus/dsp/rss_anf.hpp)
+    double last_t = 0.0;
   };
 
   Tag* find_or_claim(const BleAdvertisement& a) noexcept {
@@ -86,45 +88,14 @@ class BleRssDetector final : public Detector {
     oldest->used = true;
     oldest->address = a.address;
     oldest->device = a.device;
-    oldest->last_t = -1e300;  // forces a restart in filter()
+    oldest->last_t = a.t_s;
+    oldest->anf.restart();  // a new tag in this slot starts its filters afresh
     return oldest;
-  }
-
-  double filter(Tag& t, double time, double rssi) noexcept {
-    const double gap = time - t.last_t;
-    if (!(gap >= 0.0) || gap > restart_gap_s_) {
-      t.bf.set_steady_state(rssi);
-      t.bf_out = t.bf_prev = rssi;
-      t.next_grid_t = time + grid_dt_;
-      t.x = rssi;
-      t.r = r0_;
-      t.p = r0_;
-      t.q = q_min_;
-    } else {
-      for (; t.next_grid_t <= time; t.next_grid_t += grid_dt_) {
-        const double v = gap > 0 ? t.last_rssi + (rssi - t.last_rssi) * (t.next_grid_t - t.last_t) / gap : rssi;
-        t.bf_out = t.bf.process_double(v);
-      }
-      const double u = t.bf_out - t.bf_prev;
-      t.bf_prev = t.bf_out;
-      const double xp = t.x + u;
-      const double pp = t.p + t.q;
-      const double nu = rssi - xp;
-      const double k = pp / (pp + t.r);
-      t.x = xp + k * nu;
-      t.p = (1.0 - k) * pp;
-      t.q = (1.0 - alpha_) * t.q + alpha_ * std::max(k * nu * k * nu, q_min_);
-      t.r = (1.0 - alpha_r_) * t.r + alpha_r_ * std::max(nu * nu - pp, r_min_);
-    }
-    t.last_t = time;
-    t.last_rssi = rssi;
-    return t.x;
   }
 
   Logger* log_ = nullptr;
   std::vector<Tag> tags_;
-  double grid_dt_ = 0.1, timeout_s_ = 10.0, restart_gap_s_ = 3.0;
-  double alpha_ = 0.1, alpha_r_ = 0.02, r0_ = 16.0, r_min_ = 1.0, q_min_ = 0.01;
+  double timeout_s_ = 10.0;
   std::uint64_t dropped_tags_ = 0, dropped_events_ = 0, rejected_ = 0;
 };
 

@@ -3,6 +3,8 @@
 // with the Butterworth output. Emits, for each received advertisement, a copy with rssi_dbm
 // replaced by the filtered value.
 //
+// The filter itself is locus/dsp/rss_anf.hpp (shared with the locble localizer).
+//
 // Sampling: adverts arrive irregularly (advertising interval + random delay, lost packets, three
 // channels), and an IIR filter is only defined on a regular grid. So each tag's RSS is resampled
 // onto a grid of `grid_rate_hz` (linear interpolation between consecutive packets, evaluated when the

@@ -16,6 +16,8 @@ for sc in "$scenes"/*/; do
   sc="${sc%/}"; name="$(basename "$sc")"
   [ -f "$sc/scene.yaml" ] || continue
   family="$(sed -n 's/^[[:space:]]*family:[[:space:]]*\([A-Za-z0-9_-]*\).*/\1/p' "$sc/scene.yaml" | head -n1)"
+  # environment as a flow mapping on one line: environment: {..., family: locble, ...}
+  [ -n "$family" ] || family="$(sed -n 's/^environment:[[:space:]]*{.*[{,][[:space:]]*family:[[:space:]]*\([A-Za-z0-9_-]*\).*/\1/p' "$sc/scene.yaml" | head -n1)"
   if [ -z "$family" ]; then echo "[$name] no environment.family in scene.yaml: not scored"; continue; fi
   cfg="$src/config/$family.yaml"; bars="$src/tests/foreign/bars/$family.args"
   if [ ! -f "$cfg" ] || [ ! -f "$bars" ]; then echo "[$name] family '$family' has no localizer yet: not scored"; continue; fi

@@ -6,9 +6,18 @@
 // 4-9 m away, the target to the side of the first leg, `clustered` of the others within 0.3-1 m of
 // it (Sec. 6: neighbouring beacons), the rest elsewhere. RSS follows the log-distance model with
 // LOS / partial-LOS / NLOS exponents (motion/ble.hpp); env = los | plos | nlos | mixed (mixed: NLOS
-// behind a wall for the first part of the walk, then LOS, with people crossing (p-LOS) at random).
-// No audio. Truth: truth.csv (observer, tags), truth_steps.csv.
+// behind a wall for the first part of the walk, then LOS, with people crossing (p-LOS) at random) |
+// world (the default, as hard as the foreign generator of ../shared/scenes/README.md: the class of
+// every packet from geometry — walls between some tags and the walk (NLOS while the wall cuts the
+// line of sight), people standing near some lines of sight and bystanders walking through them
+// (p-LOS) — plus per-link exponents, per-link static shadowing per class, per-tag channel offsets, a
+// true 1 m power that is not the advertised one, spatially correlated shadowing over 2 m, Rician
+// fading per packet, a per-receiver offset, bursty (Gilbert-Elliott) loss, whole dBm).
+// `walk=long` walks 2.5-4.5 m per leg (the foreign scenes' 4-6 steps) instead of the paper's.
+// No audio. Truth: truth.csv (observer, tags), truth_steps.csv, truth_ble_env.csv (class per tag, 0.1 s).
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 
 #include "locus/sim/families.hpp"
@@ -25,7 +34,15 @@ Simulation make_locble(const FamilyOptions& opts) {
   if (clustered > tags - 1)
     throw std::invalid_argument("option 'clustered': at most tags − 1 = " + std::to_string(tags - 1) + ", got " +
                                 std::to_string(clustered));
-  const std::string env = opts.get_choice("env", "los", {"los", "plos", "nlos", "mixed"});
+  const std::string env = opts.get_choice("env", "world", {"los", "plos", "nlos", "mixed", "world"});
+  const std::string walk_kind = opts.get_choice("walk", "paper", {"paper", "long"});
+  // Each condition of env=world can be switched off alone (same layout and draws otherwise), to
+  // measure what it costs a localizer (docs/locble.md, "Simulator").
+  const bool c_walls = opts.get_bool("walls", true), c_people = opts.get_bool("people", true);
+  const bool c_bystanders = opts.get_bool("bystanders", true), c_links = opts.get_bool("links", true);
+  const bool c_bursts = opts.get_bool("bursts", true), c_fading = opts.get_bool("fading", true);
+  const bool c_shadowing = opts.get_bool("shadowing", true), c_rx_offset = opts.get_bool("rx_offset", true);
+  const bool c_loss = opts.get_bool("loss", true), c_quantize = opts.get_bool("quantize", true);
   const std::string turn = opts.get_choice("turn", "left", {"left", "right"});
   const double interval_s = opts.get_double("interval_s", 0.1, 0.02, 10.0);
   opts.finish("locble");
@@ -40,7 +57,9 @@ Simulation make_locble(const FamilyOptions& opts) {
   sim.magnetic_field_world_ut = Eigen::Vector3d(19.0 * std::cos(decl), 19.0 * std::sin(decl), -44.0);
 
   // The L: start at (2, 2) heading +x, turn towards the target's side.
-  const double leg1 = layout.uniform(2.0, 3.0), leg2 = layout.uniform(1.5, 2.5);
+  const bool long_walk = walk_kind == "long";
+  const double leg1 = long_walk ? layout.uniform(2.5, 4.5) : layout.uniform(2.0, 3.0);
+  const double leg2 = long_walk ? layout.uniform(2.5, 4.5) : layout.uniform(1.5, 2.5);
   const double side = turn == "left" ? 1.0 : -1.0;
   PedestrianParams pp;
   pp.path_m = {{2.0, 2.0}, {2.0 + leg1, 2.0}, {2.0 + leg1, 2.0 + side * leg2}};
@@ -80,17 +99,76 @@ Simulation make_locble(const FamilyOptions& opts) {
     sim.emitters.push_back(e);
   }
 
-  // Propagation: fixed class, or NLOS for the first 40 % of the walk then LOS; people crossing (p-LOS).
+  // Propagation: fixed class, or NLOS for the first 40 % of the walk then LOS; people crossing (p-LOS);
+  // or (world) from the geometry of walls, standing people and walking bystanders.
   const double t_switch = walk->walk_start_s() + 0.4 * (walk->walk_end_s() - walk->walk_start_s());
   std::vector<std::pair<double, double>> crossings;
   const double crossing_rate = env == "mixed" ? 0.15 + 0.1 * prof.imu_noise_scale : 0.0;  // per second
   for (double t = 0.0; t < walk->end_s() + 1.0; t += 1.0)
     if (layout.bernoulli(crossing_rate)) crossings.emplace_back(t, t + layout.uniform(0.5, 1.5));
-  PropagationFn envfn = [env, t_switch, crossings](const std::string&, const Eigen::Vector3d&, const Eigen::Vector3d&,
-                                                  double t) {
+  using Seg = std::pair<Eigen::Vector2d, Eigen::Vector2d>;
+  struct Walker {
+    Eigen::Vector2d p0, v;
+    double t0;
+  };
+  std::vector<Seg> walls, people;
+  std::vector<Walker> bystanders;
+  Rng world = Rng::derive(opts.seed, "locble/world");
+  if (env == "world") {
+    const double hard = prof.imu_noise_scale;  // easy 0.5, normal 1, hard 2 (difficulty_profile)
+    const Eigen::Vector2d mid(2.0 + 0.5 * leg1, 2.0 + 0.5 * side * leg2);
+    for (const auto& e : sim.emitters) {
+      const Eigen::Vector2d tag = e.trajectory->pose(0.0).position_m.head<2>();
+      const Eigen::Vector2d to_walk = mid - tag;
+      if (to_walk.norm() < 1.5) continue;
+      const Eigen::Vector2d u = to_walk.normalized(), perp(-u.y(), u.x());
+      if (world.bernoulli(std::min(0.6, 0.3 * hard))) {  // a wall across part of the views to the walk
+        const Eigen::Vector2d c = tag + world.uniform(0.3, 0.6) * to_walk + world.uniform(-1.5, 1.5) * perp;
+        const double half = world.uniform(1.0, 2.5);
+        if (c_walls) walls.push_back({c - half * perp, c + half * perp});
+      }
+      if (world.bernoulli(0.3)) {  // a person standing near the line of sight
+        const Eigen::Vector2d c = tag + world.uniform(0.2, 0.8) * to_walk + world.uniform(-0.8, 0.8) * perp;
+        if (c_people) people.push_back({c - 0.25 * perp, c + 0.25 * perp});
+      }
+    }
+    const int nb = static_cast<int>(world.integer(1, 1 + static_cast<long long>(2 * hard)));
+    for (int i = 0; i < nb; ++i) {
+      const double a = world.uniform(0.0, 2.0 * std::numbers::pi), sp = world.uniform(0.7, 1.4);
+      const Eigen::Vector2d p0 = mid + world.uniform(3.0, 10.0) * Eigen::Vector2d(std::cos(a), std::sin(a));
+      const Eigen::Vector2d aim = mid + world.uniform(-3.0, 3.0) * Eigen::Vector2d(-std::sin(a), std::cos(a));
+      const Walker b{p0, sp * (aim - p0).normalized(), walk->walk_start_s() + world.uniform(-3.0, 6.0)};
+      if (c_bystanders) bystanders.push_back(b);
+    }
+  }
+  auto crosses = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Seg& s) {
+    auto cross = [](const Eigen::Vector2d& p, const Eigen::Vector2d& q) { return p.x() * q.y() - p.y() * q.x(); };
+    const Eigen::Vector2d r = b - a, q = s.second - s.first;
+    const double den = cross(r, q);
+    if (std::abs(den) < 1e-12) return false;
+    const double t = cross(s.first - a, q) / den, v = cross(s.first - a, r) / den;
+    return t > 0.0 && t < 1.0 && v > 0.0 && v < 1.0;
+  };
+  auto near_segment = [](const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b, double r) {
+    const Eigen::Vector2d ab = b - a;
+    const double f = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
+    return (a + f * ab - p).norm() < r;
+  };
+  PropagationFn envfn = [env, t_switch, crossings, walls, people, bystanders, crosses, near_segment](
+                            const std::string&, const Eigen::Vector3d& tag3, const Eigen::Vector3d& rx3, double t) {
     if (env == "los") return Propagation::los;
     if (env == "plos") return Propagation::partial;
     if (env == "nlos") return Propagation::nlos;
+    if (env == "world") {
+      const Eigen::Vector2d tag = tag3.head<2>(), rx = rx3.head<2>();
+      for (const Seg& w : walls)
+        if (crosses(tag, rx, w)) return Propagation::nlos;
+      for (const Seg& p : people)
+        if (crosses(tag, rx, p)) return Propagation::partial;
+      for (const Walker& b : bystanders)
+        if (t >= b.t0 && near_segment(b.p0 + (t - b.t0) * b.v, tag, rx, 0.3)) return Propagation::partial;
+      return Propagation::los;
+    }
     if (t < t_switch) return Propagation::nlos;
     for (const auto& [a, b] : crossings)
       if (t >= a && t < b) return Propagation::partial;
@@ -99,6 +177,33 @@ Simulation make_locble(const FamilyOptions& opts) {
   BleChannelParams bp;
   bp.rx_offset_db = layout.normal(0.0, 3.0);
   bp.loss_probability = 0.05 * prof.imu_noise_scale * 2.0;  // easy 5 %, normal 10 %, hard 20 %
+  if (!c_rx_offset) bp.rx_offset_db = 0.0;
+  if (!c_loss) bp.loss_probability = 0.0;
+  bp.fading = c_fading;
+  bp.quantize = c_quantize;
+  if (env == "world") {
+    // Exponents and losses of the indoor 2.4 GHz literature; the per-link spread is what makes every
+    // tag's effective (Γ, n) unknown to the localizer.
+    bp.exponent = {2.0, 2.5, 3.0};
+    bp.extra_loss_db = {0.0, 2.0, 6.0};
+    bp.shadowing_std_db = {1.5, 2.0, 2.5};
+    bp.decorrelation_m = 2.0;
+    bp.channel_offset_db = {0.0, 0.0, 0.0};
+    bp.burst_enter_probability = 0.04 * prof.imu_noise_scale;
+    bp.burst_exit_probability = 0.3;
+    if (!c_bursts) bp.burst_enter_probability = 0.0;
+    if (!c_shadowing) bp.shadowing_std_db = {0.0, 0.0, 0.0};
+    for (const auto& e : sim.emitters) {
+      BleTagChannel c;
+      for (std::size_t k = 0; k < 3; ++k) {
+        c.exponent_offset[k] = world.uniform(-0.25, 0.25);
+        c.static_offset_db[k] = world.normal(0.0, 1.5 + 1.0 * prof.imu_noise_scale);
+        c.channel_offset_db[k] = world.normal(0.0, 1.5);
+      }
+      c.tx_bias_db = world.normal(2.0, 2.0);
+      if (c_links) bp.tags[e.id] = c;
+    }
+  }
 
   DeviceModel phone;
   phone.id = "O";
@@ -112,7 +217,22 @@ Simulation make_locble(const FamilyOptions& opts) {
   sim.duration_s = opts.duration_s.value_or(walk->end_s() + 0.5);
   sim.acoustics.noise.enabled = false;
   sim.extra_files["truth_steps.csv"] = truth_steps_csv({{phone.id, walk.get()}});
-  sim.environment_yaml = "propagation: " + env + ", turn: " + turn + ", truth_steps: truth_steps.csv";
+  // The propagation class of every tag's link every 0.1 s (true time): labels for EnvAware training
+  // (`locus train locble`) and for measuring it; never read by a localizer.
+  {
+    std::string csv = "t_true,tag,env\n";
+    static const char* kLabel[3] = {"LOS", "pLOS", "NLOS"};
+    for (double t = 0.0; t < walk->end_s() + 0.5; t += 0.1)
+      for (const auto& e : sim.emitters) {
+        const Propagation pr = envfn(e.id, e.trajectory->pose(t).position_m, walk->pose(t).position_m, t);
+        char line[96];
+        std::snprintf(line, sizeof line, "%.3f,%s,%s\n", t, e.id.c_str(), kLabel[static_cast<int>(pr)]);
+        csv += line;
+      }
+    sim.extra_files["truth_ble_env.csv"] = csv;
+  }
+  sim.environment_yaml = "propagation: " + env + ", turn: " + turn +
+                         ", truth_steps: truth_steps.csv, truth_ble_env: truth_ble_env.csv";
   return sim;
 }
 
@@ -129,7 +249,19 @@ const Family& locble() {
       "within 1 m of the target; log-distance RSS with LOS/p-LOS/NLOS exponents; IMU; no audio",
       {{"tags", "int", "3", "number of tags (1..6); tag1 is the target"},
        {"clustered", "int", "min(2, tags-1)", "tags placed within 0.3-1 m of the target"},
-       {"env", "los|plos|nlos|mixed", "los", "propagation class (mixed: NLOS then LOS, people crossing)"},
+       {"env", "los|plos|nlos|mixed|world", "world",
+        "propagation (mixed: NLOS then LOS, people crossing; world: walls, people, bystanders, per-link channels)"},
+       {"walk", "paper|long", "paper", "leg lengths: paper 2-3 m + 1.5-2.5 m; long 2.5-4.5 m each (foreign scenes)"},
+       {"walls", "bool", "1", "env=world: walls (0 = none; every condition below can be switched off alone)"},
+       {"people", "bool", "1", "env=world: people standing near lines of sight"},
+       {"bystanders", "bool", "1", "env=world: walking bystanders"},
+       {"links", "bool", "1", "env=world: per-link exponents, static shadowing, channel offsets, tx bias"},
+       {"bursts", "bool", "1", "env=world: bursty loss"},
+       {"fading", "bool", "1", "Rician fading per packet"},
+       {"shadowing", "bool", "1", "env=world: spatially correlated shadowing"},
+       {"rx_offset", "bool", "1", "receiver offset"},
+       {"loss", "bool", "1", "random packet loss"},
+       {"quantize", "bool", "1", "whole dBm"},
        {"turn", "left|right", "left", "direction of the L's turn (the target is on that side)"},
        {"interval_s", "double", "0.1", "advertising interval (paper: 10 Hz)"}},
       make_locble};

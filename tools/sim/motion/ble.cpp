@@ -78,6 +78,9 @@ void BleRssiModel::scan(const Simulation& sim, const DeviceModel& observer, doub
     double shadow = 0.0;
     bool have_shadow = false;
     Vector3d last_rel = Vector3d::Zero();
+    const auto link_it = p.tags.find(tag.id);
+    const BleTagChannel link = link_it != p.tags.end() ? link_it->second : BleTagChannel{};
+    bool in_burst = false;
     for (double t = t0 + r.uniform(0.0, tag.spec.interval_s); t < t1;
          t += tag.spec.interval_s + r.uniform(0.0, 0.010)) {
       const Vector3d tag_pos = tag.traj->pose(t).position_m;
@@ -95,10 +98,17 @@ void BleRssiModel::scan(const Simulation& sim, const DeviceModel& observer, doub
       }
       last_rel = rel;
       const double fading = p.fading ? rician_fading_db(p.rician_k_db[e], r) : 0.0;
-      const bool lost = r.bernoulli(p.loss_probability);
+      bool lost = r.bernoulli(p.loss_probability);
+      if (p.burst_enter_probability > 0.0) {
+        in_burst = in_burst ? !r.bernoulli(p.burst_exit_probability) : r.bernoulli(p.burst_enter_probability);
+        if (in_burst && r.bernoulli(p.burst_loss)) lost = true;
+      }
       const int ch_index = static_cast<int>(std::floor(t / p.scan_interval_s)) % 3;
+      const auto ch = static_cast<std::size_t>((ch_index + 3) % 3);
+      const double exponent_extra = link.exponent_offset[e] * 10.0 * std::log10(std::max(rel.norm(), p.min_distance_m));
       double rssi = mean_rssi_dbm(p, tag.spec.tx_power_dbm, rel.norm(), env) + p.shadowing_std_db[e] * shadow +
-                    fading + p.rx_offset_db + p.channel_offset_db[static_cast<std::size_t>((ch_index + 3) % 3)];
+                    fading + p.rx_offset_db + p.channel_offset_db[ch] - exponent_extra + link.static_offset_db[e] +
+                    link.channel_offset_db[ch] + link.tx_bias_db;
       if (lost || rssi < p.sensitivity_dbm) continue;
       if (p.quantize) rssi = std::round(rssi);
       BleReception rec;

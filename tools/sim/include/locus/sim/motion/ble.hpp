@@ -19,6 +19,7 @@
 #pragma once
 
 #include <functional>
+#include <map>
 #include <string>
 
 #include "locus/sim/engine.hpp"
@@ -27,6 +28,16 @@ namespace locus::sim::motion {
 
 enum class Propagation { los = 0, partial = 1, nlos = 2 };
 const char* to_string(Propagation p) noexcept;
+
+/// What differs from tag to tag (optional, BleChannelParams::tags): a real room gives every link its
+/// own exponent, static shadowing per propagation class, channel offsets and a true 1 m power that
+/// differs from the advertised one.
+struct BleTagChannel {
+  std::array<double, 3> exponent_offset{0.0, 0.0, 0.0};   ///< added to exponent[env]
+  std::array<double, 3> static_offset_db{0.0, 0.0, 0.0};  ///< per-link shadowing per class
+  std::array<double, 3> channel_offset_db{0.0, 0.0, 0.0}; ///< added to the common channel offsets
+  double tx_bias_db = 0.0;                                ///< true RSS at 1 m − advertised tx_power_dbm
+};
 
 struct BleChannelParams {
   std::array<double, 3> exponent{2.0, 2.8, 3.5};        ///< n for los, partial, nlos
@@ -42,6 +53,14 @@ struct BleChannelParams {
   double min_distance_m = 0.1;                          ///< near-field clamp
   bool fading = true;
   bool quantize = true;                                 ///< whole dBm
+  /// Per-tag link parameters by tag id (absent = none of the above).
+  std::map<std::string, BleTagChannel> tags;
+  /// Bursty loss (Gilbert-Elliott, per tag, on top of loss_probability): a good link enters a burst
+  /// with this probability per advertising event, leaves it with burst_exit_probability, and loses
+  /// burst_loss of the packets inside. 0 = off (no extra random draws).
+  double burst_enter_probability = 0.0;
+  double burst_exit_probability = 0.3;
+  double burst_loss = 0.9;
 };
 
 /// Propagation class between tag `tag_id` (world position tag_m) and the scanner at true time t.
