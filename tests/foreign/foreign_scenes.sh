@@ -15,9 +15,11 @@ fail=0; ran=0
 for sc in "$scenes"/*/; do
   sc="${sc%/}"; name="$(basename "$sc")"
   [ -f "$sc/scene.yaml" ] || continue
-  family="$(sed -n 's/^[[:space:]]*family:[[:space:]]*\([A-Za-z0-9_-]*\).*/\1/p' "$sc/scene.yaml" | head -n1)"
-  # environment as a flow mapping on one line: environment: {..., family: locble, ...}
-  [ -n "$family" ] || family="$(sed -n 's/^environment:[[:space:]]*{.*[{,][[:space:]]*family:[[:space:]]*\([A-Za-z0-9_-]*\).*/\1/p' "$sc/scene.yaml" | head -n1)"
+  # environment.family, read with a YAML parser (block or flow style: "environment: {family: x, ...}")
+  family="$(/usr/bin/python3 -c 'import sys, yaml
+d = yaml.safe_load(open(sys.argv[1])) or {}
+e = d.get("environment") if isinstance(d, dict) else None
+print(e.get("family", "") if isinstance(e, dict) else "")' "$sc/scene.yaml")"
   if [ -z "$family" ]; then echo "[$name] no environment.family in scene.yaml: not scored"; continue; fi
   cfg="$src/config/$family.yaml"; bars="$src/tests/foreign/bars/$family.args"
   if [ ! -f "$cfg" ] || [ ! -f "$bars" ]; then echo "[$name] family '$family' has no localizer yet: not scored"; continue; fi
