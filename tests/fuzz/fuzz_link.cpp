@@ -8,6 +8,7 @@
 #include "amil/messages.hpp"
 #include "auth/message_auth.hpp"
 #include "fuzz_support.hpp"
+#include "locble/messages.hpp"
 #include "tum/messages.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -16,9 +17,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::size_t eol = rest.find('\n');
   const std::string_view topic = eol == std::string_view::npos ? rest : rest.substr(0, eol);
   const std::string_view payload = eol == std::string_view::npos ? std::string_view() : rest.substr(eol + 1);
-  switch (data[0] % 3) {
+  switch (data[0] % 4) {
     case 0: (void)locus::plugins::amil::decode("amil", topic, payload); break;
     case 1: (void)locus::plugins::tum::decode("tum", topic, payload); break;
+    case 3: {
+      std::string why;
+      (void)locus::plugins::locble::decode(payload, &why);
+      break;
+    }
     default: {
       static locus::linkauth::MessageAuthenticator auth("fuzz-site-key-0123456789abcdef", "fuzz", 30.0);
       (void)auth.verify(topic, payload, 1.8e9);

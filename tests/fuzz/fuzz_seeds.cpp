@@ -8,6 +8,7 @@
 
 #include "amil/messages.hpp"
 #include "auth/message_auth.hpp"
+#include "locble/messages.hpp"
 #include "tum/messages.hpp"
 
 namespace amil = locus::plugins::amil;
@@ -46,6 +47,12 @@ int main(int argc, char** argv) {
   o.t1_s = {1.25, NAN};
   o.t2_s = {1.5, 1.5001};
   seed('\1', tum::topic_obs("tum", "B"), tum::encode(o));
+  locus::plugins::locble::TargetMotion tm;
+  tm.address = {0xAA, 0xBB, 0xCC, 0xDD, 0xEE, 0x01};
+  tm.t_s = 3.5;
+  tm.east_m = 1.25;
+  tm.north_m = -0.5;
+  seed('\3', "locble/motion/T1", locus::plugins::locble::encode(tm));
   locus::linkauth::MessageAuthenticator auth("fuzz-site-key-0123456789abcdef", "L01", 30.0);
   seed('\2', "amil/arrivals/L01", auth.sign("amil/arrivals/L01", amil::encode(a), 1.8e9));
   seed('\2', "amil/arrivals/L01", amil::encode(a));

@@ -36,6 +36,8 @@ case "$target" in
     cp "$here/seeds/estimates.jsonl" "$out/" ;;
   link)
     "$bin/locus_fuzz_seeds" "$out" ;;
+  model)
+    cp "$root"/config/*-envaware.yaml "$out"/ ;;
   *)
     echo "seed_corpus.sh: unknown target '$target'" >&2; exit 2 ;;
 esac
