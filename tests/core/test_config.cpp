@@ -136,6 +136,21 @@ TEST_F(ConfigTest, SeveralYamlDocuments) {
   EXPECT_CONFIG_ERROR(e[0], 4, 1, "", "expected one YAML document, found 2 (remove the '---' separators)");
 }
 
+// Found by tests/fuzz (config): a lone ',' made yaml-cpp 0.7's LoadAll loop forever, allocating
+// (jbeder/yaml-cpp#1040); `locus check-config` hung until the machine ran out of memory.
+TEST_F(ConfigTest, ALoneCommaIsAnErrorNotAHang) {
+  for (const char* text : {",\n", "devices:\n  - id: A\n,\n", "\n\n,templatet port: {from_scene: true}\n"}) {
+    const auto e = errors(text);
+    ASSERT_FALSE(e.empty()) << text;
+  }
+  // An empty second document (a trailing '---') is no document.
+  try {
+    load_config_string("log_level: info\ndevices:\n  - id: A\n---\n", "test.yaml", registry);
+  } catch (const ConfigErrors& e) {
+    for (const auto& err : e.errors()) EXPECT_EQ(err.message.find("YAML document"), std::string::npos) << err.message;
+  }
+}
+
 TEST_F(ConfigTest, WrongNodeKind) {
   const auto e = errors(R"(output: [estimate]
 devices:

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <utility>
@@ -843,15 +844,74 @@ class ConfigChecker {
   throw ConfigErrors({std::move(e)});
 }
 
+/// Counts the documents of a YAML stream and where the second one starts. An empty document (a lone
+/// null) after the first ends the count: yaml-cpp 0.7's parser keeps returning such documents forever
+/// on some malformed input (a lone ',': jbeder/yaml-cpp#1040; LoadAll then allocates
+/// until the machine runs out of memory; fixed upstream by #1319, after Debian 12's 0.7).
+class DocumentCounter final : public YAML::EventHandler {
+ public:
+  void OnDocumentStart(const YAML::Mark&) override {
+    ++documents;
+    content = false;
+  }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark& m, YAML::anchor_t) override { node(m); }
+  void OnScalar(const YAML::Mark& m, const std::string&, YAML::anchor_t, const std::string&) override { node(m); }
+  void OnSequenceStart(const YAML::Mark& m, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+    node(m);
+  }
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark& m, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+    node(m);
+  }
+  void OnMapEnd() override {}
+
+  int documents = 0;
+  bool content = false;  ///< the current document holds more than a null
+  YAML::Mark start;      ///< where the current document's first node is
+
+ private:
+  void node(const YAML::Mark& m) {
+    if (!content) start = m;
+    content = true;
+  }
+};
+
+/// The first document of `text` (null when there is none) and, when a second non-empty one follows,
+/// its start. Never loops: YAML::Load builds one document, the counter stops at the second.
+struct Documents {
+  YAML::Node first;
+  int count = 0;                        ///< the first and every non-empty one after it
+  std::optional<YAML::Mark> second_at;  ///< set when count > 1
+};
+Documents load_documents(const std::string& text) {
+  Documents d;
+  d.first = YAML::Load(text);
+  std::istringstream in(text);
+  YAML::Parser parser(in);
+  DocumentCounter counter;
+  while (parser.HandleNextDocument(counter)) {
+    if (counter.documents == 1) {
+      d.count = 1;
+      continue;
+    }
+    if (!counter.content) break;  // an empty document after the first: the end (or yaml-cpp looping)
+    ++d.count;
+    if (!d.second_at) d.second_at = counter.start;
+  }
+  return d;
+}
+
 }  // namespace
 
 // ------------------------------------------------------------------------------------ entry points
 
 Config load_config_string(std::string_view yaml, const std::string& name, Registry& registry,
                           const std::string& base_dir) {
-  std::vector<YAML::Node> docs;
+  Documents docs;
   try {
-    docs = YAML::LoadAll(std::string(yaml));
+    docs = load_documents(std::string(yaml));
   } catch (const YAML::ParserException& e) {
     throw_one(name, e.mark.line >= 0 ? e.mark.line + 1 : 0, e.mark.column >= 0 ? e.mark.column + 1 : 0,
               "YAML syntax error: " + e.msg);
@@ -859,14 +919,14 @@ Config load_config_string(std::string_view yaml, const std::string& name, Regist
     throw_one(name, e.mark.line >= 0 ? e.mark.line + 1 : 0, e.mark.column >= 0 ? e.mark.column + 1 : 0,
               "cannot parse YAML: " + e.msg);
   }
-  if (docs.size() > 1) {
-    const YAML::Mark m = docs[1].Mark();
+  if (docs.second_at) {
+    const YAML::Mark m = *docs.second_at;
     throw_one(name, m.line >= 0 ? m.line + 1 : 0, m.column >= 0 ? m.column + 1 : 0,
-              "expected one YAML document, found " + std::to_string(docs.size()) + " (remove the '---' separators)");
+              "expected one YAML document, found " + std::to_string(docs.count) + " (remove the '---' separators)");
   }
   std::vector<ConfigError> errors;
   ConfigChecker checker(name, base_dir, registry, errors);
-  Config config = checker.run(docs.empty() ? YAML::Node() : docs[0]);
+  Config config = checker.run(docs.first);
   if (!errors.empty()) {
     std::stable_sort(errors.begin(), errors.end(), [](const ConfigError& a, const ConfigError& b) {
       return std::pair(a.line, a.column) < std::pair(b.line, b.column);
