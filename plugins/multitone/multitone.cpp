@@ -152,6 +152,8 @@ class MultitoneDetector final : public Detector {
     if (frame_ < 16) throw std::runtime_error("multitone: frame_s is shorter than 16 samples");
     thr_db_ = params.get_float("threshold_db");
     thr_ = std::pow(10.0, thr_db_ / 10.0);
+    id_db_ = params.get_float("identity_db");
+    coherent_ = params.get_string("fit_phase") == "known";
     min_tones_ = static_cast<int>(params.get_int("min_tones"));
     tail_ = static_cast<std::size_t>(std::llround(params.get_float("tail_s") * fs_));
     smooth_ = std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(params.get_float("smoothing_s") * fs_)));
@@ -163,7 +165,6 @@ class MultitoneDetector final : public Detector {
     rel_ = std::pow(10.0, -params.get_float("relative_db") / 10.0);
     onset_thr_ = std::pow(10.0, params.get_float("onset_threshold_db") / 10.0);
     fit_len_ = static_cast<std::size_t>(std::llround(params.get_float("fit_window_s") * fs_));
-    pre_ = static_cast<std::size_t>(std::llround(params.get_float("pre_window_s") * fs_));
 
     bank_ = dsp::GoertzelBank(tones_, fs_);
     const double kt = static_cast<double>(tones_.size());
@@ -176,6 +177,7 @@ class MultitoneDetector final : public Detector {
 
     len_ = static_cast<std::size_t>(std::llround(duration_s_ * fs_));
     onset_len_ = std::min(len_, static_cast<std::size_t>(std::llround(fs_ / spacing)));
+    pre_ = onset_len_ / 4;  // search margin before the leading edge (samples before τ do not enter the fit)
     fit_len_ = std::min(fit_len_, len_);
     if (fit_len_ < 8) throw std::runtime_error("multitone: fit_window_s is shorter than 8 samples");
     search_ = static_cast<std::int64_t>(frame_ + 2 * hop_ + static_cast<std::size_t>(fade_s_ * fs_));
@@ -199,7 +201,7 @@ class MultitoneDetector final : public Detector {
         fft_->forward(buf.data(), part == 0 ? spec_c_[k].data() : spec_s_[k].data());
       }
     }
-    fine_n_ = (fit_len_ + pre_ + 4) * kOs;
+    fine_n_ = (fit_len_ + 2 * pre_ + 2 * onset_len_ + 68) * kOs;
     fine_s_.assign(tones_.size() * fine_n_, 0.0f);
     fine_c_.assign(tones_.size() * fine_n_, 0.0f);
     for (std::size_t k = 0; k < tones_.size(); ++k)
@@ -238,7 +240,7 @@ class MultitoneDetector final : public Detector {
     sorted_.assign(nfft_, 0.0);
     mt_s_.assign(fine_n_, 0.0f);
     mt_c_.assign(fine_n_, 0.0f);
-    win_y_.assign(fit_len_ + pre_ + 2 * onset_len_ + 64, 0.0f);
+    win_y_.assign(fit_len_ + 2 * pre_ + 2 * onset_len_ + 64, 0.0f);
     env_.assign(len_ + tail_ + 2 * smooth_ + 2, 0.0);
     expected_ = 0;
     have_expected_ = false;
@@ -385,7 +387,7 @@ class MultitoneDetector final : public Detector {
     }
     std::uint32_t mask = 0;
     for (std::size_t k = 0; k < tones_.size(); ++k)
-      if (l[k] > thr_db_ && p.level[k] > rel_ * pmax) mask |= 1u << k;
+      if (l[k] > id_db_ && p.level[k] > rel_ * pmax) mask |= 1u << k;
     if (mask == 0) return 0;
     conf = 1.0;
     if (!candidates_.empty()) {
@@ -404,7 +406,7 @@ class MultitoneDetector final : public Detector {
       }
       // The candidate must explain the strong tones: every tone within 10 dB of the strongest is in it.
       for (std::size_t k = 0; k < tones_.size(); ++k)
-        if (l[k] > lmax - 10.0 && l[k] > thr_db_ && !((arg >> k) & 1u)) return 0;
+        if (l[k] > lmax - 10.0 && l[k] > id_db_ && !((arg >> k) & 1u)) return 0;
       mask = arg;
       conf = candidates_.size() > 1 ? std::clamp((best - second) / std::max(lmax, 1e-9), 0.0, 1.0) : 1.0;
     }
@@ -436,6 +438,10 @@ class MultitoneDetector final : public Detector {
       ss += s * s;
       cc += c * c;
       sc += s * c;
+    }
+    if (coherent_) {  // known carrier phase: one real amplitude (sign free)
+      amp = ss > 1e-30 ? std::fabs(ys) / ss : 0.0;
+      return ss > 1e-30 ? ys * ys / ss : 0.0;
     }
     const double det = ss * cc - sc * sc;
     if (!(det > 1e-30)) {
@@ -505,14 +511,15 @@ class MultitoneDetector final : public Detector {
     double centre = static_cast<double>(seg0) + static_cast<double>(edge);  // absolute frame estimate
     double amp = 0.0;
     // Passes: (range before, range after the current estimate in samples, step in 1/kOs samples).
-    const std::int64_t passes[3][3] = {{static_cast<std::int64_t>(pre_), static_cast<std::int64_t>(onset_len_), 8},
+    const std::int64_t passes[3][3] = {{static_cast<std::int64_t>(onset_len_ + pre_), static_cast<std::int64_t>(onset_len_), 8},
                                        {24, 24, 2},
                                        {3, 3, 1}};
     for (int pass = 0; pass < 3; ++pass) {
       const std::int64_t c0 = static_cast<std::int64_t>(std::floor(centre));
       // Fixed window for all candidates of the pass: pre_ before the estimate to fit_len_ after it.
-      const std::int64_t w0 = c0 - static_cast<std::int64_t>(pre_);
-      const std::size_t nw = std::min(pre_ + fit_len_, win_y_.size());
+      // (pass 0: from pre_ before the earliest to fit_len_ after the latest candidate).
+      const std::int64_t w0 = c0 - passes[pass][0] * (pass == 0) - static_cast<std::int64_t>(pre_);
+      const std::size_t nw = std::min(static_cast<std::size_t>(c0 + (pass == 0 ? passes[0][1] : 0) - w0) + fit_len_, win_y_.size());
       if (w0 < static_cast<std::int64_t>(ch.start_frame) || static_cast<std::uint64_t>(w0) + nw > ch.end_frame) return;
       for (std::size_t n = 0; n < nw; ++n) win_y_[n] = ch.raw[(static_cast<std::uint64_t>(w0) + n) & ring_mask_];
       const std::int64_t step = passes[pass][2];
@@ -610,8 +617,9 @@ class MultitoneDetector final : public Detector {
   std::size_t frame_ = 441, hop_ = 110, len_ = 0, tail_ = 0, smooth_ = 1, nfft_ = 0;
   std::size_t onset_len_ = 176, fit_len_ = 176, pre_ = 60, noise_len_ = 882, fine_n_ = 0, before_ = 0, after_ = 0;
   std::int64_t search_ = 0;
-  double thr_ = 10.0, thr_db_ = 10.0, beta_ = 0.01, rise_ = 4.0, rel_ = 0.003, onset_thr_ = 30.0;
+  double thr_ = 10.0, thr_db_ = 10.0, id_db_ = 6.0, beta_ = 0.01, rise_ = 4.0, rel_ = 0.003, onset_thr_ = 30.0;
   int min_tones_ = 1;
+  bool coherent_ = false;
   std::uint64_t warmup_hops_ = 1, hold_hops_ = 1, max_active_hops_ = 1;
   dsp::GoertzelBank bank_;
   std::vector<float> win_;
@@ -659,10 +667,12 @@ const ParamSchema& schema() {
       float_param("hold_s", 0.15, 0.0, 10.0, "s", "Floors learn only this long after the last tone activity (beep tails)."),
       float_param("max_active_s", 0.6, 0.05, 60.0, "s", "Activity longer than this is not a beep: floors learn through it."),
       float_param("rise_db", 6.0, 1.0, 40.0, "dB", "Rise of the summed tone power within 3 hops that opens a beep on a tail."),
+      float_param("identity_db", 6.0, 1.0, 80.0, "dB", "A tone is in the identity when its mean power over the beep body exceeds its floor by this."),
       float_param("relative_db", 25.0, 3.0, 80.0, "dB", "A tone is on only within this of the strongest tone (Doppler leakage, fading)."),
       float_param("onset_threshold_db", 15.0, 3.0, 60.0, "dB", "Leading edge: onset statistic over its noise level."),
-      float_param("fit_window_s", 0.004, 0.0005, 0.05, "s", "Onset fit window after the first path."),
-      float_param("pre_window_s", 0.0014, 0.0, 0.02, "s", "Onset fit window before the first path (must hold no signal)."),
+      enum_param("fit_phase", "free", {"free", "known"},
+                 "Onset fit: `free` = complex amplitude (any phase shift of the path), `known` = the format's sine phases (carrier-resolved; a path's phase shift biases it)."),
+      float_param("fit_window_s", 0.003, 0.0005, 0.05, "s", "Onset fit window after the first path."),
   };
   return schema;
 }

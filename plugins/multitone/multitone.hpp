@@ -19,7 +19,8 @@
 //      tail). A beep's body closes after two quiet hops or duration_s + frame_s; closed beeps queue
 //      (up to 8) for analysis, so a new beep opens however close the previous one;
 //   3. identity: per tone, the mean tone-bank power over the body frames; tone k is on when it
-//      exceeds its floor by threshold_db and lies within relative_db of the strongest tone. With
+//      exceeds its floor by identity_db (a mean over many frames, so lower than threshold_db) and
+//      lies within relative_db of the strongest tone. With
 //      `identities` (or from_scene: the scene's multitone emitters) the identity is the candidate
 //      that best explains the levels: score = Σ_k ±(L_k − L_max/2) (+ for tones in the candidate),
 //      L_k in dB over the floor; a measured mask that no candidate explains is rejected;
@@ -29,11 +30,12 @@
 //      exceeds onset_threshold_db above that noise marks the leading edge (so a weak diffracted
 //      first path, 20-30 dB under later echoes, is still found when it clears the noise). Then a
 //      least-squares fit of the beep's onset a·s(t−τ) (complex amplitude: cos and sin templates,
-//      template zero before τ) over a fixed window [τ−pre_window_s, τ+fit_window_s): maximise the
-//      projected energy over τ on a 1/8-sample grid (coarse pass over one grid period, then two
-//      recentred passes), parabolic interpolation. The fixed window penalises a τ too late (unmodelled
-//      signal before it) and too early (template energy on noise); only the first fit_window_s of
-//      the beep enter, before most echoes;
+//      template zero before τ) over a window fixed for all candidates τ of a pass, ending
+//      fit_window_s after the current estimate: maximise the projected (explained) energy over τ on a
+//      1/8-sample grid (a coarse pass over ±1 grid period around the edge, then two recentred
+//      passes), parabolic interpolation. A τ too late leaves the signal before it unexplained, a τ
+//      too early misplaces the fade-in; only the first fit_window_s of the beep enter, before most
+//      echoes (3 ms: floor and ceiling images arrive 1.3-2.5 ms after the direct path at 7-15 m);
 //   5. decay features (SpyLoc §V-B): the energy of the band-passed signal (Butterworth over the
 //      tone band), smoothed by a centred moving average of smoothing_s, from the arrival to
 //      duration_s + tail_s later; reference = its peak during the direct sound; T_x = time from the
