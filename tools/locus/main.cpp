@@ -13,6 +13,7 @@
 #include "record/cli.hpp"
 #include "replay/cli.hpp"
 #include "sim/cli.hpp"
+#include "train/cli.hpp"
 
 int main(int argc, char** argv) {
   CLI::App cli{"locus: localization from sound, motion and radio"};
@@ -40,6 +41,7 @@ int main(int argc, char** argv) {
       locus::app::add_record_command(cli),
       locus::app::add_replay_command(cli),
       locus::app::add_simulate_command(cli),
+      locus::app::add_train_command(cli),
   };
 
   try {
