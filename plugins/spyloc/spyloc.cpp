@@ -203,18 +203,20 @@ class SpyLocLocalizer final : public Localizer {
     } else {
       tracker_.predict(p.t_s);
       if (los) {
+        init_.push_back(InitRange{p.beacon, p.t_s, range});
+        while (!init_.empty() && p.t_s - init_.front().t_s > init_window_s_) init_.pop_front();
         double nis = 0.0;
         if (tracker_.update_range(b.anchor, z_, range, sd, nis)) {
           rejects_ = 0;
         } else {
           gated = true;
           ++gated_;
-          if (++rejects_ >= reinit_after_) {  // lost: start again from trilateration
+          if (++rejects_ >= reinit_after_) {  // lost: a new fix from the recent LoS ranges (near the old track)
+            last_xy_ = tracker_.position();
+            have_last_ = true;
             tracker_ = Tracker(tcfg_);
-            init_.clear();
             rejects_ = 0;
-            init_.push_back(InitRange{p.beacon, p.t_s, range});
-            return;
+            if (!try_init(p.t_s)) return;
           }
         }
       }
@@ -245,6 +247,7 @@ class SpyLocLocalizer final : public Localizer {
     if (fixes.size() > 1 && fixes[1].rms_residual_m < 2.0 * fixes[0].rms_residual_m + 0.1) {
       ambiguous_ = true;
       auto score = [&](const Fix& f) {
+        if (have_last_) return -std::hypot(f.xy_m[0] - last_xy_[0], f.xy_m[1] - last_xy_[1]);  // continuity
         if (region_.size() == 4) {
           const double dx = std::max({region_[0] - f.xy_m[0], 0.0, f.xy_m[0] - region_[2]});
           const double dy = std::max({region_[1] - f.xy_m[1], 0.0, f.xy_m[1] - region_[3]});
@@ -308,6 +311,8 @@ class SpyLocLocalizer final : public Localizer {
   LosClassifier classifier_;
   Tracker tracker_;
   bool ambiguous_ = false;
+  bool have_last_ = false;
+  std::array<double, 2> last_xy_{};
   int rejects_ = 0;
   std::uint64_t beeps_ = 0, no_sync_ = 0, nlos_ = 0, gated_ = 0, inits_ = 0, published_ = 0, unknown_ = 0;
 };
@@ -331,8 +336,8 @@ const ParamSchema& schema() {
       string_param("los_model", std::string(""), "LoS/NLoS model file (locus train spyloc; a relative path is looked up from the working directory, then its parents); \"\" = every beep LoS, gate only."),
       float_param("los_threshold", 0.5, 0.0, 1.0, "", "P(LoS) at or above which a beep's range is used."),
       float_param("init_window_s", 1.5, 0.1, 30.0, "s", "LoS ranges of >= 3 beacons within this make the first fix."),
-      int_param("reinit_after", std::int64_t{4}, 1, 1000, "", "Consecutive gated-out LoS ranges that restart from a fix."),
-      float_param("accel_std_mps2", 1.0, 0.01, 50.0, "m/s^2", "White acceleration of the constant-velocity tracker."),
+      int_param("reinit_after", std::int64_t{4}, 1, 1000, "", "Consecutive gated-out LoS ranges after which a new fix replaces the track."),
+      float_param("accel_std_mps2", 0.6, 0.01, 50.0, "m/s^2", "White acceleration of the constant-velocity tracker."),
       float_param("max_speed_mps", 2.5, 0.1, 20.0, "m/s", "Speed cap of the tracker."),
       float_param("gate_sigma", 4.0, 1.0, 100.0, "", "Innovation gate (sigmas) of an LoS range."),
       float_list_param("region_m", std::vector<double>{}, -1e6, 1e6, "m",

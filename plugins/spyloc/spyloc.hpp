@@ -21,7 +21,7 @@
 // assumed device height; a mirror ambiguity (beacons in a line) is resolved by `region_m` when given,
 // else by the candidate farther from the world axes (scene frames hold the room in x, y >= 0), and
 // flagged `ambiguous`. Then the EKF (tracker.hpp) predicts to each beep and applies its LoS range;
-// reinit_after consecutive gated-out LoS ranges restart from trilateration.
+// reinit_after consecutive gated-out LoS ranges widen the track (inflate_m) so the ranges pull it back.
 // Output: one `estimate` per processed beep after the first fix: world frame, target = the device,
 // t_s = the beep's arrival (device clock), std_m = std_scale·sqrt(trace P) (std_scale measured so
 // that ~68 % of errors fall within std_m), confidence = exp(−std_m / 1 m) (×0.5 when ambiguous or

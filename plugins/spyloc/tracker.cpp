@@ -57,6 +57,13 @@ bool Tracker::update_range(const std::array<double, 3>& b, double z_m, double ra
   return true;
 }
 
+void Tracker::inflate(double pos_std_m, double vel_std_mps) {
+  P_(0, 0) += pos_std_m * pos_std_m;
+  P_(1, 1) += pos_std_m * pos_std_m;
+  P_(2, 2) += vel_std_mps * vel_std_mps;
+  P_(3, 3) += vel_std_mps * vel_std_mps;
+}
+
 void Tracker::update_speed(double speed_mps, double std_mps) {
   const double v = std::hypot(x_(2), x_(3));
   if (v < 0.05) return;  // direction unknown: a speed alone cannot be applied

@@ -32,6 +32,8 @@ class Tracker {
   /// Range update (slant range to `beacon` with the device at height z). Returns false when gated out
   /// (the filter is unchanged); `nis` receives the normalised innovation squared.
   bool update_range(const std::array<double, 3>& beacon, double z_m, double range_m, double std_m, double& nis);
+  /// Widens the covariance (lost track: ranges keep disagreeing): position ± pos_std, velocity ± vel_std.
+  void inflate(double pos_std_m, double vel_std_mps);
   /// Speed observation (steps): |v| = speed ± std.
   void update_speed(double speed_mps, double std_mps);
   std::array<double, 2> position() const { return {x_(0), x_(1)}; }
