@@ -80,6 +80,7 @@ class SpyLocLocalizer final : public Localizer {
     tcfg_.accel_std_mps2 = params.get_float("accel_std_mps2");
     tcfg_.max_speed_mps = params.get_float("max_speed_mps");
     tcfg_.gate_sigma = params.get_float("gate_sigma");
+    tcfg_.gate_long_sigma = params.get_float("gate_long_sigma");
     region_ = params.get_floats("region_m");
     if (!region_.empty() && (region_.size() != 4 || !(region_[2] > region_[0]) || !(region_[3] > region_[1])))
       throw std::runtime_error("spyloc: param 'region_m': expected [x_min, y_min, x_max, y_max] with max > min, or []");
@@ -339,7 +340,8 @@ const ParamSchema& schema() {
       int_param("reinit_after", std::int64_t{4}, 1, 1000, "", "Consecutive gated-out LoS ranges after which a new fix replaces the track."),
       float_param("accel_std_mps2", 0.6, 0.01, 50.0, "m/s^2", "White acceleration of the constant-velocity tracker."),
       float_param("max_speed_mps", 2.5, 0.1, 20.0, "m/s", "Speed cap of the tracker."),
-      float_param("gate_sigma", 4.0, 1.0, 100.0, "", "Innovation gate (sigmas) of an LoS range."),
+      float_param("gate_sigma", 4.0, 1.0, 100.0, "", "Innovation gate (sigmas) of an LoS range shorter than predicted."),
+      float_param("gate_long_sigma", 4.0, 0.5, 100.0, "", "Innovation gate (sigmas) of a range longer than predicted (NLoS paths are longer)."),
       float_list_param("region_m", std::vector<double>{}, -1e6, 1e6, "m",
                        "[x_min, y_min, x_max, y_max] where the walker can be (resolves the mirror fix of beacons in a line); [] = unknown.", 0, 4),
       float_param("std_scale", 1.0, 0.01, 100.0, "", "Scale of the filter's std (calibration: ~68 % of errors within std_m)."),

@@ -49,7 +49,8 @@ bool Tracker::update_range(const std::array<double, 3>& b, double z_m, double ra
   const double S = (H * P_ * H.transpose())(0, 0) + std_m * std_m;
   const double nu = range_m - r;
   nis = nu * nu / S;
-  if (nis > cfg_.gate_sigma * cfg_.gate_sigma) return false;
+  const double gate = nu > 0.0 ? cfg_.gate_long_sigma : cfg_.gate_sigma;
+  if (nis > gate * gate) return false;
   const Eigen::Vector4d K = P_ * H.transpose() / S;
   x_ += K * nu;
   const Eigen::Matrix4d I_KH = Eigen::Matrix4d::Identity() - K * H;
