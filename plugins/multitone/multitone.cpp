@@ -45,6 +45,7 @@ constexpr double kPi = std::numbers::pi;
 using cf = std::complex<float>;
 constexpr std::size_t kMaxPending = 8;
 constexpr std::size_t kOs = 8;  // fine-fit grid: 1/kOs sample
+constexpr std::size_t kMaxBodyHops = 64;  // body hops kept for the identity's median
 
 struct Pending {
   std::uint64_t open_frame = 0;   // hop end when the beep opened
@@ -54,10 +55,9 @@ struct Pending {
 };
 
 struct Channel {
-  std::vector<float> raw, bp;   // rings indexed by frame & mask
-  dsp::SosFilter bpf;
+  std::vector<float> raw;       // ring indexed by frame & mask
   std::vector<double> floor;    // per tone
-  std::vector<double> acc;      // per tone, sum of powers over the body
+  std::vector<double> body;     // per body hop (up to kMaxBodyHops), per tone: tone-bank power
   std::uint64_t floor_n = 0;
   std::size_t since_hop = 0;
   bool in_body = false;
@@ -224,10 +224,8 @@ class MultitoneDetector final : public Detector {
     chans_.assign(channels_, Channel{});
     for (Channel& ch : chans_) {
       ch.raw.assign(ring_size_, 0.0f);
-      ch.bp.assign(ring_size_, 0.0f);
-      ch.bpf = dsp::SosFilter(sos_);
       ch.floor.assign(tones_.size(), 0.0);
-      ch.acc.assign(tones_.size(), 0.0);
+      ch.body.assign(kMaxBodyHops * tones_.size(), 0.0);
     }
     frame_buf_.assign(frame_, 0.0f);
     pow_.assign(tones_.size(), 0.0);
@@ -242,6 +240,9 @@ class MultitoneDetector final : public Detector {
     mt_c_.assign(fine_n_, 0.0f);
     win_y_.assign(fit_len_ + 2 * pre_ + 2 * onset_len_ + 64, 0.0f);
     env_.assign(len_ + tail_ + 2 * smooth_ + 2, 0.0);
+    settle_ = static_cast<std::size_t>(std::llround(0.01 * fs_));
+    bp_buf_.assign(frame_ + settle_ + len_ + tail_ + 2 * smooth_ + 4, 0.0f);
+    bpf_ = dsp::SosFilter(sos_);
     expected_ = 0;
     have_expected_ = false;
     dropped_ = 0;
@@ -259,7 +260,6 @@ class MultitoneDetector final : public Detector {
       for (std::uint32_t i = 0; i < block.frames; ++i) {
         const std::uint64_t f = block.first_frame + i;
         ch.raw[f & ring_mask_] = x[i];
-        ch.bp[f & ring_mask_] = ch.bpf.process(x[i]);
         ch.end_frame = f + 1;
         if (++ch.since_hop == hop_) {
           ch.since_hop = 0;
@@ -289,7 +289,6 @@ class MultitoneDetector final : public Detector {
 
  private:
   void restart(Channel& ch, std::uint64_t frame) noexcept {
-    ch.bpf.reset();
     std::fill(ch.floor.begin(), ch.floor.end(), 0.0);
     ch.floor_n = 0;
     ch.since_hop = 0;
@@ -317,7 +316,12 @@ class MultitoneDetector final : public Detector {
     p.open_frame = ch.open_frame;
     p.ready_frame = ch.open_frame + after_;
     for (std::size_t k = 0; k < tones_.size(); ++k) {
-      p.level[k] = ch.acc[k] / std::max(1, ch.body_hops);
+      // Median over the body hops: the frames on the beep's edges (fade splatter into neighbouring
+      // tones) and a burst of noise do not move it.
+      const std::size_t n = std::min<std::size_t>(static_cast<std::size_t>(std::max(ch.body_hops, 1)), kMaxBodyHops);
+      for (std::size_t h = 0; h < n; ++h) med_[h] = ch.body[h * tones_.size() + k];
+      std::nth_element(med_.begin(), med_.begin() + static_cast<std::ptrdiff_t>(n / 2), med_.begin() + static_cast<std::ptrdiff_t>(n));
+      p.level[k] = med_[n / 2];
       p.floor[k] = ch.floor[k];
     }
   }
@@ -348,7 +352,8 @@ class MultitoneDetector final : public Detector {
     for (std::size_t i = ch.sum_hist.size() - 1; i > 0; --i) ch.sum_hist[i] = ch.sum_hist[i - 1];
     ch.sum_hist[0] = sum;
     if (ch.in_body) {
-      for (std::size_t k = 0; k < tones_.size(); ++k) ch.acc[k] += pow_[k];
+      if (static_cast<std::size_t>(ch.body_hops) < kMaxBodyHops)
+        std::copy(pow_.begin(), pow_.end(), ch.body.begin() + static_cast<std::ptrdiff_t>(ch.body_hops * tones_.size()));
       ++ch.body_hops;
       ch.quiet_hops = active ? 0 : ch.quiet_hops + 1;
       if (ch.quiet_hops >= 2 || ch.end_frame - ch.open_frame > len_) close_body(ch);
@@ -360,7 +365,7 @@ class MultitoneDetector final : public Detector {
       ch.last_open = ch.end_frame;
       ch.quiet_hops = 0;
       ch.body_hops = 1;
-      std::copy(pow_.begin(), pow_.end(), ch.acc.begin());
+      std::copy(pow_.begin(), pow_.end(), ch.body.begin());
     }
     ch.was_active = active;
     ch.hops_since_active = active ? 0 : ch.hops_since_active + 1;
@@ -580,22 +585,31 @@ class MultitoneDetector final : public Detector {
     const std::int64_t from = a0 - static_cast<std::int64_t>(smooth_ / 2);
     if (from >= static_cast<std::int64_t>(ch.start_frame) &&
         static_cast<std::uint64_t>(from) + n_env + smooth_ <= ch.end_frame) {
+      // Band-pass only where needed (not per sample in the stream): from the noise window before the
+      // beep, after settle_ samples for the filter's transient, to the end of the decay window.
+      const std::int64_t b0 = std::max<std::int64_t>(static_cast<std::int64_t>(ch.start_frame),
+                                                     from - static_cast<std::int64_t>(frame_ + settle_));
+      const std::int64_t b1 = from + static_cast<std::int64_t>(n_env + smooth_);
+      bpf_.reset();
+      for (std::int64_t k = b0; k < b1; ++k)
+        bp_buf_[static_cast<std::size_t>(k - b0)] = bpf_.process(ch.raw[static_cast<std::uint64_t>(k) & ring_mask_]);
+      auto bp = [&](std::int64_t k) { return bp_buf_[static_cast<std::size_t>(k - b0)]; };
       double acc = 0.0;
       for (std::size_t i = 0; i < smooth_; ++i) {
-        const float v = ch.bp[(static_cast<std::uint64_t>(from) + i) & ring_mask_];
+        const float v = bp(from + static_cast<std::int64_t>(i));
         acc += static_cast<double>(v) * v;
       }
       for (std::size_t i = 0; i < n_env; ++i) {
         env_[i] = acc / static_cast<double>(smooth_);  // centred on frame a0 + i
-        const float vin = ch.bp[(static_cast<std::uint64_t>(from) + smooth_ + i) & ring_mask_];
-        const float vout = ch.bp[(static_cast<std::uint64_t>(from) + i) & ring_mask_];
+        const float vin = bp(from + static_cast<std::int64_t>(smooth_ + i));
+        const float vout = bp(from + static_cast<std::int64_t>(i));
         acc += static_cast<double>(vin) * vin - static_cast<double>(vout) * vout;
       }
       f.decay_s = decay_times(std::span<const double>(env_.data(), n_env), 0, len_, len_, fs_);
       double noise_e = 0.0;
-      const std::size_t pre = std::min<std::size_t>(frame_, static_cast<std::size_t>(std::max<std::int64_t>(0, from - static_cast<std::int64_t>(ch.start_frame))));
+      const std::size_t pre = std::min<std::size_t>(frame_, static_cast<std::size_t>(std::max<std::int64_t>(0, from - b0)));
       for (std::size_t i = 1; i <= pre; ++i) {
-        const float v = ch.bp[(static_cast<std::uint64_t>(from) - i) & ring_mask_];
+        const float v = bp(from - static_cast<std::int64_t>(i));
         noise_e += static_cast<double>(v) * v;
       }
       double peak = 0.0;
@@ -626,7 +640,9 @@ class MultitoneDetector final : public Detector {
   std::vector<dsp::Biquad> sos_;
   std::unique_ptr<RealFft> fft_;
   std::vector<std::vector<cf>> spec_c_, spec_s_;
-  std::vector<float> fine_s_, fine_c_, mt_s_, mt_c_, win_y_;
+  std::vector<float> fine_s_, fine_c_, mt_s_, mt_c_, win_y_, bp_buf_;
+  dsp::SosFilter bpf_;
+  std::size_t settle_ = 441;
   double tone_energy_ = 1.0;
   double sum_thr_ = 1e300;
   std::uint64_t rejected_ = 0, overflow_ = 0;
@@ -634,6 +650,7 @@ class MultitoneDetector final : public Detector {
   std::vector<Channel> chans_;
   std::vector<float> frame_buf_, seg_, re_, im_;
   std::vector<double> pow_, env_, stat_, sorted_;
+  std::array<double, kMaxBodyHops> med_{};
   std::vector<cf> spec_y_, spec_w_;
   std::uint64_t expected_ = 0;
   bool have_expected_ = false;
@@ -654,7 +671,7 @@ const ParamSchema& schema() {
       float_param("duration_s", 0.05, 0.002, 2.0, "s", "Beep duration (the emitters' multitone `duration`)."),
       float_param("fade_s", 0.005, 0.0, 1.0, "s", "Raised-cosine fade of the beep (the emitters' `fade`)."),
       float_param("frame_s", 0.01, 0.0005, 0.5, "s", "Tone-bank analysis frame (Hann window)."),
-      float_param("hop_s", 0.0025, 0.0001, 0.5, "s", "Tone-bank hop."),
+      float_param("hop_s", 0.005, 0.0001, 0.5, "s", "Tone-bank hop."),
       float_param("threshold_db", 12.0, 1.0, 80.0, "dB", "A tone is on when its power exceeds its noise floor by this."),
       int_param("min_tones", std::int64_t{1}, 1, 16, "", "Tones that must be on to open a beep."),
       float_param("floor_time_constant_s", 1.0, 0.01, 3600.0, "s", "Time constant of the per-tone noise floors."),

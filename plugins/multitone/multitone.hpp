@@ -18,7 +18,7 @@
 //      when the summed power rises by rise_db within 3 hops (a beep on top of the previous one's
 //      tail). A beep's body closes after two quiet hops or duration_s + frame_s; closed beeps queue
 //      (up to 8) for analysis, so a new beep opens however close the previous one;
-//   3. identity: per tone, the mean tone-bank power over the body frames; tone k is on when it
+//   3. identity: per tone, the median tone-bank power over the body frames; tone k is on when it
 //      exceeds its floor by identity_db (a mean over many frames, so lower than threshold_db) and
 //      lies within relative_db of the strongest tone. With
 //      `identities` (or from_scene: the scene's multitone emitters) the identity is the candidate

@@ -111,6 +111,7 @@ TEST(Multitone, IdentityAndArrivalAtStatedSnrs) {
       ASSERT_EQ(o.det.size(), 1u) << "snr " << snr_db << " trial " << trial;
       ASSERT_EQ(o.feat.size(), 1u);
       id_ok += o.det[0].template_index == mask;
+      if (o.det[0].template_index != mask) std::printf("  snr %+.0f trial %d: identity %u, emitted %u\n", snr_db, trial, o.det[0].template_index, mask);
       const double err = o.det[0].frame - truth;
       max_err = std::max(max_err, std::abs(err));
       sum2 += err * err;
