@@ -206,11 +206,12 @@ struct Room {
 struct Obstruction {
   std::string a, b;
   double attenuation_db = 20.0;
-  /// The direct path is this much longer while obstructed (diffraction around an edge: the first
-  /// path bends over it); 0 = only attenuated.
-  double extra_path_m = 0.0;
   double t_begin_s = -std::numeric_limits<double>::infinity();
   double t_end_s = std::numeric_limits<double>::infinity();
+  /// The direct path is this much longer while obstructed (diffraction around an edge: the first
+  /// path bends over it); 0 = only attenuated. Last, so aggregate initialisers {a, b, dB, t0, t1} keep
+  /// their meaning.
+  double extra_path_m = 0.0;
 };
 
 /// Acoustic background noise at each microphone, relative to the reference level: snr_db is the SNR
