@@ -207,16 +207,22 @@ class SpyLocLocalizer final : public Localizer {
         init_.push_back(InitRange{p.beacon, p.t_s, range});
         while (!init_.empty() && p.t_s - init_.front().t_s > init_window_s_) init_.pop_front();
         double nis = 0.0;
-        if (tracker_.update_range(b.anchor, z_, range, sd, nis)) {
-          rejects_ = 0;
-        } else {
+        const bool ok = tracker_.update_range(b.anchor, z_, range, sd, nis);
+        recent_.push_back(!ok);
+        while (recent_.size() > static_cast<std::size_t>(2 * reinit_after_)) recent_.pop_front();
+        int recent_rejects = 0;
+        for (bool r : recent_) recent_rejects += r;
+        if (!ok) {
           gated = true;
           ++gated_;
-          if (++rejects_ >= reinit_after_) {  // lost: a new fix from the recent LoS ranges (near the old track)
+          // Lost: reinit_after gated-out LoS ranges among the last 2·reinit_after (a track in a mirror
+          // image keeps agreeing with the beacons of one line, so consecutive counts would miss it):
+          // a new fix from the recent LoS ranges of all beacons.
+          if (recent_rejects >= reinit_after_) {
             last_xy_ = tracker_.position();
             have_last_ = true;
             tracker_ = Tracker(tcfg_);
-            rejects_ = 0;
+            recent_.clear();
             if (!try_init(p.t_s)) return;
           }
         }
@@ -269,7 +275,7 @@ class SpyLocLocalizer final : public Localizer {
     cov[2] += motion2;
     tracker_.init(t, best.xy_m, cov, 1.5);
     ++inits_;
-    rejects_ = 0;
+    recent_.clear();
     return true;
   }
 
@@ -303,7 +309,7 @@ class SpyLocLocalizer final : public Localizer {
   std::string instance_, device_, detector_;
   double c_ = 343.2, z_ = 1.2, height_std_ = 0.25, range_std_ = 0.08, max_range_ = 40.0, slack_s_ = 0.002;
   double los_thr_ = 0.5, init_window_s_ = 1.5, std_scale_ = 1.0, std_floor_ = 0.05;
-  int reinit_after_ = 4;
+  int reinit_after_ = 3;
   std::vector<double> region_;
   TrackerConfig tcfg_;
   std::vector<Beacon> beacons_;
@@ -314,7 +320,7 @@ class SpyLocLocalizer final : public Localizer {
   bool ambiguous_ = false;
   bool have_last_ = false;
   std::array<double, 2> last_xy_{};
-  int rejects_ = 0;
+  std::deque<bool> recent_;  ///< last LoS ranges: gated out?
   std::uint64_t beeps_ = 0, no_sync_ = 0, nlos_ = 0, gated_ = 0, inits_ = 0, published_ = 0, unknown_ = 0;
 };
 
@@ -337,7 +343,7 @@ const ParamSchema& schema() {
       string_param("los_model", std::string(""), "LoS/NLoS model file (locus train spyloc; a relative path is looked up from the working directory, then its parents); \"\" = every beep LoS, gate only."),
       float_param("los_threshold", 0.5, 0.0, 1.0, "", "P(LoS) at or above which a beep's range is used."),
       float_param("init_window_s", 1.5, 0.1, 30.0, "s", "LoS ranges of >= 3 beacons within this make the first fix."),
-      int_param("reinit_after", std::int64_t{4}, 1, 1000, "", "Consecutive gated-out LoS ranges after which a new fix replaces the track."),
+      int_param("reinit_after", std::int64_t{3}, 1, 1000, "", "Gated-out LoS ranges among the last 2x this many after which a new fix replaces the track."),
       float_param("accel_std_mps2", 0.6, 0.01, 50.0, "m/s^2", "White acceleration of the constant-velocity tracker."),
       float_param("max_speed_mps", 2.5, 0.1, 20.0, "m/s", "Speed cap of the tracker."),
       float_param("gate_sigma", 4.0, 1.0, 100.0, "", "Innovation gate (sigmas) of an LoS range shorter than predicted."),
