@@ -77,6 +77,7 @@ class SpyLocLocalizer final : public Localizer {
     reinit_after_ = static_cast<int>(params.get_int("reinit_after"));
     std_scale_ = params.get_float("std_scale");
     std_floor_ = params.get_float("std_floor_m");
+    nlos_bias_m_ = params.get_float("nlos_bias_m");
     tcfg_.accel_std_mps2 = params.get_float("accel_std_mps2");
     tcfg_.max_speed_mps = params.get_float("max_speed_mps");
     tcfg_.gate_sigma = params.get_float("gate_sigma");
@@ -194,7 +195,9 @@ class SpyLocLocalizer final : public Localizer {
     const bool los = pl >= los_thr_;
     if (!los) ++nlos_;
     const double dz = b.anchor[2] - z_;
-    const double sd = std::sqrt(range_std_ * range_std_ + std::pow(dz * height_std_ / std::max(range, 1.0), 2));
+    // An uncertain verdict carries the NLoS bias it may hide as variance: + (1 − P(LoS))·nlos_bias_m².
+    const double sd = std::sqrt(range_std_ * range_std_ + std::pow(dz * height_std_ / std::max(range, 1.0), 2) +
+                                (1.0 - pl) * nlos_bias_m_ * nlos_bias_m_);
     bool gated = false;
     if (!tracker_.initialised()) {
       if (!los) return;
@@ -308,6 +311,7 @@ class SpyLocLocalizer final : public Localizer {
   Logger* log_ = nullptr;
   std::string instance_, device_, detector_;
   double c_ = 343.2, z_ = 1.2, height_std_ = 0.25, range_std_ = 0.08, max_range_ = 40.0, slack_s_ = 0.002;
+  double nlos_bias_m_ = 0.0;
   double los_thr_ = 0.5, init_window_s_ = 1.5, std_scale_ = 1.0, std_floor_ = 0.05;
   int reinit_after_ = 3;
   std::vector<double> region_;
@@ -342,12 +346,13 @@ const ParamSchema& schema() {
       float_param("sync_slack_s", 0.002, 0.0, 0.1, "s", "A beep may come this much before sync + delay (radio latency, jitter)."),
       string_param("los_model", std::string(""), "LoS/NLoS model file (locus train spyloc; a relative path is looked up from the working directory, then its parents); \"\" = every beep LoS, gate only."),
       float_param("los_threshold", 0.5, 0.0, 1.0, "", "P(LoS) at or above which a beep's range is used."),
+      float_param("nlos_bias_m", 0.0, 0.0, 50.0, "m", "Typical excess of an NLoS range: a used range's variance grows by (1 - P(LoS))·this²."),
       float_param("init_window_s", 1.5, 0.1, 30.0, "s", "LoS ranges of >= 3 beacons within this make the first fix."),
       int_param("reinit_after", std::int64_t{3}, 1, 1000, "", "Gated-out LoS ranges among the last 2x this many after which a new fix replaces the track."),
       float_param("accel_std_mps2", 0.6, 0.01, 50.0, "m/s^2", "White acceleration of the constant-velocity tracker."),
       float_param("max_speed_mps", 2.5, 0.1, 20.0, "m/s", "Speed cap of the tracker."),
       float_param("gate_sigma", 4.0, 1.0, 100.0, "", "Innovation gate (sigmas) of an LoS range shorter than predicted."),
-      float_param("gate_long_sigma", 4.0, 0.5, 100.0, "", "Innovation gate (sigmas) of a range longer than predicted (NLoS paths are longer)."),
+      float_param("gate_long_sigma", 2.5, 0.5, 100.0, "", "Innovation gate (sigmas) of a range longer than predicted (NLoS paths are longer)."),
       float_list_param("region_m", std::vector<double>{}, -1e6, 1e6, "m",
                        "[x_min, y_min, x_max, y_max] where the walker can be (resolves the mirror fix of beacons in a line); [] = unknown.", 0, 4),
       float_param("std_scale", 1.0, 0.01, 100.0, "", "Scale of the filter's std (calibration: ~68 % of errors within std_m)."),
