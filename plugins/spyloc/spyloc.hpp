@@ -23,8 +23,8 @@
 // flagged `ambiguous`. Then the EKF (tracker.hpp) predicts to each beep and applies its LoS range;
 // reinit_after consecutive gated-out LoS ranges widen the track (inflate_m) so the ranges pull it back.
 // Output: one `estimate` per processed beep after the first fix: world frame, target = the device,
-// t_s = the beep's arrival (device clock), std_m = std_scale·sqrt(trace P) (std_scale measured so
-// that ~68 % of errors fall within std_m), confidence = exp(−std_m / 1 m) (×0.5 when ambiguous or
+// t_s = the beep's arrival (device clock), std_m = std_scale·sqrt(trace P) (std_scale 2.36 measured
+// so that 68 % of errors fall within std_m on simulated seeds 101-120; spyloc-104: 71 %), confidence = exp(−std_m / 1 m) (×0.5 when ambiguous or
 // the beep was gated out), los = this beep's verdict.
 // Not done here (issue 16): link/BLE sync for live boards, step-length model and heading from the IMU.
 #pragma once
