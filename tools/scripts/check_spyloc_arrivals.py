@@ -6,8 +6,9 @@ usage: check_spyloc_arrivals.py SCENE_DIR DETECTIONS.jsonl [--json] [--device ID
 
 Why: SpyLoc ranges from one beep's first-path arrival; a beep opened late, with the wrong beacon's
 identity, or timed on an echo (the 4 ms envelope lobes of a 250 Hz tone grid) is a range error of
-metres. So every beep is scored: found with the right identity, first-path error in samples, and
-(when the detector's `decay_features` or the estimate's verdict are present) nothing more here.
+metres. So every beep is scored: found with the right identity, and its first-path error in samples,
+split by the truth's LOS / NLOS label (the classifier's verdicts are scored by `locus eval` and
+docs/spyloc.md, not here).
 
 Truth, per beep: the local sample index (fractional) of the first path at the device's microphone.
   * Scene with truth-extra.yaml holding `beeps` (the independent reference generator): each entry's
