@@ -43,27 +43,56 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 using cf = std::complex<float>;
+constexpr std::size_t kMaxPending = 8;
+constexpr std::size_t kOs = 8;  // fine-fit grid: 1/kOs sample
+constexpr std::size_t kMaxBodyHops = 64;  // body hops kept for the identity's median
 
-enum class State { idle, beep, tail };
+struct Pending {
+  std::uint64_t open_frame = 0;   // hop end when the beep opened
+  std::uint64_t ready_frame = 0;  // frame after which all the audio it needs is in the ring
+  std::array<double, 16> level{};  // mean tone-bank power over the body, per tone
+  std::array<double, 16> floor{};  // floors when it opened
+};
 
 struct Channel {
-  std::vector<float> raw, bp;   // rings indexed by frame & mask
-  dsp::SosFilter bpf;
+  std::vector<float> raw;       // ring indexed by frame & mask
   std::vector<double> floor;    // per tone
-  std::vector<double> peak;     // per tone, during a beep
+  std::vector<double> body;     // per body hop (up to kMaxBodyHops), per tone: tone-bank power
   std::uint64_t floor_n = 0;
   std::size_t since_hop = 0;
-  State state = State::idle;
+  bool in_body = false;
+  bool was_active = false;
+  int body_hops = 0;
   int quiet_hops = 0;
-  std::uint64_t open_frame = 0;   // hop end when the beep opened
-  std::uint64_t ready_frame = 0;  // frame after which the tail is complete
+  std::uint64_t hops_since_active = 1u << 30;
+  std::uint64_t active_run = 0;
+  std::array<double, 4> sum_hist{};  // summed normalised power of the last hops
+  std::uint64_t open_frame = 0;
+  std::uint64_t last_open = 0;
+  bool opened_once = false;
+  std::array<Pending, kMaxPending> pending{};
+  std::size_t pend_head = 0, pend_n = 0;
   std::uint64_t start_frame = 0;  // first valid frame since restart
   std::uint64_t end_frame = 0;
   bool started = false;
 };
 
+// The tone set of a multitone SignalSpec as bits of `tones` (-1 when a tone is not in the set).
+long mask_of(const std::vector<double>& tones, const std::vector<double>& spec_tones) {
+  long m = 0;
+  for (double f : spec_tones) {
+    long k = -1;
+    for (std::size_t i = 0; i < tones.size(); ++i)
+      if (std::fabs(tones[i] - f) < 0.5) k = static_cast<long>(i);
+    if (k < 0) return -1;
+    m |= 1L << k;
+  }
+  return m;
+}
+
 class MultitoneDetector final : public Detector {
  public:
+  // [main]
   void configure(const StreamInfo& info, const Params& params, HostContext& ctx) override {
     log_ = &ctx.log;
     device_ = info.device;
@@ -85,100 +114,152 @@ class MultitoneDetector final : public Detector {
     }
     duration_s_ = params.get_float("duration_s");
     fade_s_ = params.get_float("fade_s");
+    candidates_.clear();
+    for (double v : params.get_floats("identities")) {
+      const long m = std::lround(v);
+      if (std::fabs(v - static_cast<double>(m)) > 1e-9 || m <= 0 || m >= (1L << tones_.size()))
+        throw std::runtime_error("multitone: identities entry " + std::to_string(v) + " is not a tone mask in 1.." +
+                                 std::to_string((1L << tones_.size()) - 1));
+      candidates_.push_back(static_cast<std::uint32_t>(m));
+    }
+    if (params.get_bool("from_scene") && ctx.geometry != nullptr) {
+      bool timing = false;
+      for (const SceneSignal& e : ctx.geometry->scene_emits) {
+        if (e.signal.type != "multitone") continue;
+        const long m = mask_of(tones_, e.signal.tones_hz);
+        if (m <= 0)
+          throw std::runtime_error("multitone: scene emitter " + std::string(e.id) +
+                                   ": a tone of its multitone is not in tones_hz");
+        if (std::find(candidates_.begin(), candidates_.end(), static_cast<std::uint32_t>(m)) == candidates_.end())
+          candidates_.push_back(static_cast<std::uint32_t>(m));
+        if (!timing) {
+          duration_s_ = e.signal.duration_s;
+          fade_s_ = e.signal.fade_s;
+          timing = true;
+        } else if (std::fabs(duration_s_ - e.signal.duration_s) > 1e-9 || std::fabs(fade_s_ - e.signal.fade_s) > 1e-9) {
+          throw std::runtime_error("multitone: the scene's multitone emitters differ in duration/fade; one detector "
+                                   "handles one beep length");
+        }
+      }
+      ctx.log.info("multitone: " + std::to_string(candidates_.size()) + " identities from the scene");
+    }
+    if (!(duration_s_ > 0)) throw std::runtime_error("multitone: duration_s must be > 0");
     if (2.0 * fade_s_ > duration_s_)
       throw std::runtime_error("multitone: 2·fade_s (" + std::to_string(2 * fade_s_) + " s) exceeds duration_s (" +
                                std::to_string(duration_s_) + " s)");
     frame_ = static_cast<std::size_t>(std::llround(params.get_float("frame_s") * fs_));
     hop_ = std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(params.get_float("hop_s") * fs_)));
     if (frame_ < 16) throw std::runtime_error("multitone: frame_s is shorter than 16 samples");
-    thr_ = std::pow(10.0, params.get_float("threshold_db") / 10.0);
+    thr_db_ = params.get_float("threshold_db");
+    thr_ = std::pow(10.0, thr_db_ / 10.0);
+    id_db_ = params.get_float("identity_db");
+    coherent_ = params.get_string("fit_phase") == "known";
     min_tones_ = static_cast<int>(params.get_int("min_tones"));
     tail_ = static_cast<std::size_t>(std::llround(params.get_float("tail_s") * fs_));
     smooth_ = std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(params.get_float("smoothing_s") * fs_)));
     beta_ = 1.0 - std::exp(-static_cast<double>(hop_) / (params.get_float("floor_time_constant_s") * fs_));
     warmup_hops_ = static_cast<std::uint64_t>(std::ceil(params.get_float("warmup_s") * fs_ / static_cast<double>(hop_)));
+    hold_hops_ = static_cast<std::uint64_t>(std::ceil(params.get_float("hold_s") * fs_ / static_cast<double>(hop_)));
+    max_active_hops_ = static_cast<std::uint64_t>(std::ceil(params.get_float("max_active_s") * fs_ / static_cast<double>(hop_)));
+    rise_ = std::pow(10.0, params.get_float("rise_db") / 10.0);
+    rel_ = std::pow(10.0, -params.get_float("relative_db") / 10.0);
+    onset_thr_ = std::pow(10.0, params.get_float("onset_threshold_db") / 10.0);
+    fit_len_ = static_cast<std::size_t>(std::llround(params.get_float("fit_window_s") * fs_));
 
     bank_ = dsp::GoertzelBank(tones_, fs_);
     const double kt = static_cast<double>(tones_.size());
     sum_thr_ = kt + 7.0 * std::sqrt(kt) + 4.0;
     win_.resize(frame_);
     for (std::size_t i = 0; i < frame_; ++i) win_[i] = static_cast<float>(0.5 - 0.5 * std::cos(2 * kPi * (i + 0.5) / frame_));
-    const double spacing = tones_.size() > 1 ? tones_[1] - tones_[0] : 250.0;
+    double spacing = tones_.size() > 1 ? tones_[1] - tones_[0] : 250.0;
+    for (std::size_t k = 2; k < tones_.size(); ++k) spacing = std::min(spacing, tones_[k] - tones_[k - 1]);
     sos_ = dsp::butter_bandpass(4, std::max(1.0, tones_.front() - spacing), std::min(fs_ / 2.0 * 0.999, tones_.back() + spacing), fs_);
 
-    // Matched-filter templates per tone (envelope w(t) of the format, cos and sin parts).
     len_ = static_cast<std::size_t>(std::llround(duration_s_ * fs_));
+    onset_len_ = std::min(len_, static_cast<std::size_t>(std::llround(fs_ / spacing)));
+    pre_ = onset_len_ / 4;  // search margin before the leading edge (samples before τ do not enter the fit)
+    fit_len_ = std::min(fit_len_, len_);
+    if (fit_len_ < 8) throw std::runtime_error("multitone: fit_window_s is shorter than 8 samples");
     search_ = static_cast<std::int64_t>(frame_ + 2 * hop_ + static_cast<std::size_t>(fade_s_ * fs_));
-    nfft_ = std::bit_ceil(len_ + 2 * static_cast<std::size_t>(search_) + 1);
+    noise_len_ = static_cast<std::size_t>(std::llround(0.02 * fs_));
+    nfft_ = std::bit_ceil(noise_len_ + onset_len_ + 2 * static_cast<std::size_t>(search_) + 1);
     fft_ = ctx.fft.plan_real(nfft_);
     const std::size_t nb = nfft_ / 2 + 1;
     spec_c_.assign(tones_.size(), std::vector<cf>(nb));
     spec_s_.assign(tones_.size(), std::vector<cf>(nb));
     std::vector<float> buf(nfft_);
-    tone_energy_ = 0.0;
+    // Onset templates per tone (first onset_len_ samples of the beep; cos and sin parts) for the FFT
+    // onset statistic, and finely sampled (1/kOs sample) over the fit window for the LS fit.
     for (std::size_t k = 0; k < tones_.size(); ++k) {
       for (int part = 0; part < 2; ++part) {
         std::fill(buf.begin(), buf.end(), 0.0f);
-        for (std::size_t n = 0; n < len_; ++n) {
+        for (std::size_t n = 0; n < onset_len_; ++n) {
           const double t = static_cast<double>(n) / fs_;
-          const double w = dsp::fade_weight(t, duration_s_, fade_s_);
           const double ph = 2 * kPi * tones_[k] * t;
-          buf[n] = static_cast<float>(w * (part == 0 ? std::cos(ph) : std::sin(ph)));
-          if (k == 0 && part == 0) tone_energy_ += w * w / 2.0;
+          buf[n] = static_cast<float>(dsp::fade_weight(t, duration_s_, fade_s_) * (part == 0 ? std::sin(ph) : std::cos(ph)));
         }
         fft_->forward(buf.data(), part == 0 ? spec_c_[k].data() : spec_s_[k].data());
       }
     }
-    tone_c_.assign(tones_.size() * len_, 0.0f);
-    tone_s_.assign(tones_.size() * len_, 0.0f);
+    fine_n_ = (fit_len_ + 2 * pre_ + 2 * onset_len_ + 68) * kOs;
+    fine_s_.assign(tones_.size() * fine_n_, 0.0f);
+    fine_c_.assign(tones_.size() * fine_n_, 0.0f);
     for (std::size_t k = 0; k < tones_.size(); ++k)
-      for (std::size_t n = 0; n < len_; ++n) {
-        const double t = static_cast<double>(n) / fs_;
+      for (std::size_t i = 0; i < fine_n_; ++i) {
+        const double t = static_cast<double>(i) / (static_cast<double>(kOs) * fs_);
         const double w = dsp::fade_weight(t, duration_s_, fade_s_);
-        tone_c_[k * len_ + n] = static_cast<float>(w * std::cos(2 * kPi * tones_[k] * t));
-        tone_s_[k * len_ + n] = static_cast<float>(w * std::sin(2 * kPi * tones_[k] * t));
+        fine_s_[k * fine_n_ + i] = static_cast<float>(w * std::sin(2 * kPi * tones_[k] * t));
+        fine_c_[k * fine_n_ + i] = static_cast<float>(w * std::cos(2 * kPi * tones_[k] * t));
       }
-    double hann2 = 0.0;
-    for (float v : win_) hann2 += static_cast<double>(v) * v;
-    corr_per_frame_ = 2.0 * tone_energy_ / hann2;
-    const std::size_t span = static_cast<std::size_t>(search_) + len_ + tail_ + 2 * frame_ + smooth_;
-    ring_size_ = std::bit_ceil(2 * (span + nfft_) + info.max_block_frames + 4 * frame_ + 2 * hop_);
+    tone_energy_ = 0.0;
+    for (std::size_t n = 0; n < len_; ++n) {
+      const double w = dsp::fade_weight(static_cast<double>(n) / fs_, duration_s_, fade_s_);
+      tone_energy_ += w * w / 2.0;
+    }
+    // Ring: from the noise reference before the search range to the end of the decay window.
+    before_ = static_cast<std::size_t>(search_) + noise_len_ + frame_;
+    after_ = static_cast<std::size_t>(search_) + len_ + tail_ + 2 * smooth_ + nfft_ + fit_len_ + 2 * frame_;
+    ring_size_ = std::bit_ceil(2 * (before_ + after_) + info.max_block_frames + 4 * frame_ + 2 * hop_ + pre_);
     ring_mask_ = ring_size_ - 1;
     chans_.assign(channels_, Channel{});
     for (Channel& ch : chans_) {
       ch.raw.assign(ring_size_, 0.0f);
-      ch.bp.assign(ring_size_, 0.0f);
-      ch.bpf = dsp::SosFilter(sos_);
       ch.floor.assign(tones_.size(), 0.0);
-      ch.peak.assign(tones_.size(), 0.0);
+      ch.body.assign(kMaxBodyHops * tones_.size(), 0.0);
     }
     frame_buf_.assign(frame_, 0.0f);
     pow_.assign(tones_.size(), 0.0);
     seg_.assign(nfft_, 0.0f);
     spec_y_.assign(nb, cf{});
-    spec_a_.assign(nb, cf{});
-    spec_b_.assign(nb, cf{});
     spec_w_.assign(nb, cf{});
     re_.assign(nfft_, 0.0f);
     im_.assign(nfft_, 0.0f);
+    stat_.assign(nfft_, 0.0);
+    sorted_.assign(nfft_, 0.0);
+    mt_s_.assign(fine_n_, 0.0f);
+    mt_c_.assign(fine_n_, 0.0f);
+    win_y_.assign(fit_len_ + 2 * pre_ + 2 * onset_len_ + 64, 0.0f);
     env_.assign(len_ + tail_ + 2 * smooth_ + 2, 0.0);
+    settle_ = static_cast<std::size_t>(std::llround(0.01 * fs_));
+    bp_buf_.assign(frame_ + settle_ + len_ + tail_ + 2 * smooth_ + 4, 0.0f);
+    bpf_ = dsp::SosFilter(sos_);
     expected_ = 0;
     have_expected_ = false;
     dropped_ = 0;
   }
 
+  // [RT]
   void process_audio(const AudioBlock& block, EventSink& out) noexcept override {
     const bool gap = block.lost_before > 0 || (have_expected_ && block.first_frame != expected_);
     const std::uint32_t nch = std::min(block.channels, channels_);
     for (std::uint32_t c = 0; c < nch; ++c) {
       Channel& ch = chans_[c];
-      if (gap) ch.started = false;  // a beep in progress across a gap is dropped
+      if (gap) ch.started = false;  // beeps in progress across a gap are dropped
       if (!ch.started) restart(ch, block.first_frame);
       const float* x = block.channel_data[c];
       for (std::uint32_t i = 0; i < block.frames; ++i) {
         const std::uint64_t f = block.first_frame + i;
         ch.raw[f & ring_mask_] = x[i];
-        ch.bp[f & ring_mask_] = ch.bpf.process(x[i]);
         ch.end_frame = f + 1;
         if (++ch.since_hop == hop_) {
           ch.since_hop = 0;
@@ -190,28 +271,69 @@ class MultitoneDetector final : public Detector {
     have_expected_ = true;
   }
 
+  // [main]
   void finish(EventSink& out) override {
     for (std::uint32_t c = 0; c < channels_; ++c) {
       Channel& ch = chans_[c];
-      if (ch.started && ch.state != State::idle && ch.end_frame >= ch.ready_frame) finalize(c, out);
+      if (!ch.started) continue;
+      if (ch.in_body) close_body(ch);
+      while (ch.pend_n > 0) {
+        finalize(c, ch.pending[ch.pend_head], out);
+        ch.pend_head = (ch.pend_head + 1) % kMaxPending;
+        --ch.pend_n;
+      }
     }
     if (dropped_ > 0 && log_) log_->warn("multitone: " + std::to_string(dropped_) + " events dropped (event queue full)");
+    if (overflow_ > 0 && log_) log_->warn("multitone: " + std::to_string(overflow_) + " beeps dropped (more than 8 awaiting analysis)");
   }
 
  private:
   void restart(Channel& ch, std::uint64_t frame) noexcept {
-    ch.bpf.reset();
     std::fill(ch.floor.begin(), ch.floor.end(), 0.0);
     ch.floor_n = 0;
     ch.since_hop = 0;
-    ch.state = State::idle;
+    ch.in_body = false;
+    ch.was_active = false;
+    ch.hops_since_active = 1u << 30;
+    ch.active_run = 0;
+    ch.sum_hist.fill(0.0);
+    ch.pend_n = 0;
+    ch.pend_head = 0;
+    ch.opened_once = false;
     ch.start_frame = frame;
     ch.end_frame = frame;
     ch.started = true;
   }
 
+  void close_body(Channel& ch) noexcept {
+    ch.in_body = false;
+    if (ch.pend_n == kMaxPending) {
+      ++overflow_;
+      return;
+    }
+    Pending& p = ch.pending[(ch.pend_head + ch.pend_n) % kMaxPending];
+    ++ch.pend_n;
+    p.open_frame = ch.open_frame;
+    p.ready_frame = ch.open_frame + after_;
+    for (std::size_t k = 0; k < tones_.size(); ++k) {
+      // Median over the body hops: the frames on the beep's edges (fade splatter into neighbouring
+      // tones) and a burst of noise do not move it.
+      const std::size_t n = std::min<std::size_t>(static_cast<std::size_t>(std::max(ch.body_hops, 1)), kMaxBodyHops);
+      for (std::size_t h = 0; h < n; ++h) med_[h] = ch.body[h * tones_.size() + k];
+      std::nth_element(med_.begin(), med_.begin() + static_cast<std::ptrdiff_t>(n / 2), med_.begin() + static_cast<std::ptrdiff_t>(n));
+      p.level[k] = med_[n / 2];
+      p.floor[k] = ch.floor[k];
+    }
+  }
+
+  // [RT] One tone-bank hop: floors, opening and closing of beeps, analysis of the ready ones.
   void hop(std::uint32_t c, EventSink& out) noexcept {
     Channel& ch = chans_[c];
+    while (ch.pend_n > 0 && ch.end_frame >= ch.pending[ch.pend_head].ready_frame) {
+      finalize(c, ch.pending[ch.pend_head], out);
+      ch.pend_head = (ch.pend_head + 1) % kMaxPending;
+      --ch.pend_n;
+    }
     if (ch.end_frame - ch.start_frame < frame_) return;
     const std::uint64_t first = ch.end_frame - frame_;
     for (std::size_t i = 0; i < frame_; ++i) frame_buf_[i] = ch.raw[(first + i) & ring_mask_] * win_[i];
@@ -226,143 +348,215 @@ class MultitoneDetector final : public Detector {
     // Either enough single tones clear the threshold, or the tone set's summed normalised power
     // does (many weak tones): under noise the sum is Gamma(K, 1), K + 7·sqrt(K) is far in its tail.
     const bool active = warm && (above >= min_tones_ || sum > sum_thr_);
-    switch (ch.state) {
-      case State::idle:
-        if (active) {
-          ch.state = State::beep;
-          ch.open_frame = ch.end_frame;
-          ch.quiet_hops = 0;
-          std::copy(pow_.begin(), pow_.end(), ch.peak.begin());
-        } else {
-          for (std::size_t k = 0; k < tones_.size(); ++k) {
-            const double b = std::max(beta_, 1.0 / static_cast<double>(ch.floor_n + 1));
-            ch.floor[k] += b * (pow_[k] - ch.floor[k]);
-          }
-          ++ch.floor_n;
-        }
-        break;
-      case State::beep:
-        for (std::size_t k = 0; k < tones_.size(); ++k) ch.peak[k] = std::max(ch.peak[k], pow_[k]);
-        ch.quiet_hops = active ? 0 : ch.quiet_hops + 1;
-        if (ch.quiet_hops >= 2 || ch.end_frame - ch.open_frame > len_ + frame_) {
-          ch.state = State::tail;
-          // Coarse onset ≈ open_frame − frame/2; the last sample needed by the analysis:
-          ch.ready_frame = ch.open_frame + static_cast<std::uint64_t>(search_) + len_ + tail_ + smooth_ + nfft_;
-        }
-        break;
-      case State::tail:
-        if (ch.end_frame >= ch.ready_frame) finalize(c, out);
-        break;
+    const bool rising = active && sum > rise_ * ch.sum_hist[2] && ch.sum_hist[2] > 0.0;
+    for (std::size_t i = ch.sum_hist.size() - 1; i > 0; --i) ch.sum_hist[i] = ch.sum_hist[i - 1];
+    ch.sum_hist[0] = sum;
+    if (ch.in_body) {
+      if (static_cast<std::size_t>(ch.body_hops) < kMaxBodyHops)
+        std::copy(pow_.begin(), pow_.end(), ch.body.begin() + static_cast<std::ptrdiff_t>(ch.body_hops * tones_.size()));
+      ++ch.body_hops;
+      ch.quiet_hops = active ? 0 : ch.quiet_hops + 1;
+      if (ch.quiet_hops >= 2 || ch.end_frame - ch.open_frame > len_) close_body(ch);
+    } else if (active && (!ch.was_active || rising) &&
+               (!ch.opened_once || ch.end_frame - ch.last_open > len_ + frame_)) {
+      ch.in_body = true;
+      ch.opened_once = true;
+      ch.open_frame = ch.end_frame;
+      ch.last_open = ch.end_frame;
+      ch.quiet_hops = 0;
+      ch.body_hops = 1;
+      std::copy(pow_.begin(), pow_.end(), ch.body.begin());
+    }
+    ch.was_active = active;
+    ch.hops_since_active = active ? 0 : ch.hops_since_active + 1;
+    ch.active_run = active ? ch.active_run + 1 : 0;
+    // Floors: only well away from any activity (beeps and their tails), or slowly inside a long one.
+    const bool learn = !ch.in_body && (!warm || ch.hops_since_active > hold_hops_ || ch.active_run > max_active_hops_);
+    if (learn) {
+      for (std::size_t k = 0; k < tones_.size(); ++k) {
+        const double b = std::max(beta_, 1.0 / static_cast<double>(ch.floor_n + 1));
+        ch.floor[k] += b * (pow_[k] - ch.floor[k]);
+      }
+      ++ch.floor_n;
     }
   }
 
-  // Envelope maximum of the matched filter of `mask` over the segment whose spectrum is spec_y_;
-  // returns the lag (segment index), its envelope and the parabolic offset.
-  std::size_t locate(std::uint32_t mask, double& best_e, double& off) noexcept {
-    const std::size_t nb = nfft_ / 2 + 1;
-    std::fill(spec_a_.begin(), spec_a_.end(), cf{});
-    std::fill(spec_b_.begin(), spec_b_.end(), cf{});
+  // [RT] Identity of a beep from its per-tone body levels; 0 = not a beep of the set.
+  std::uint32_t identity(const Pending& p, double& snr_db, double& conf) noexcept {
+    double lmax = 0.0, pmax = 0.0;
+    std::array<double, 16> l{};
     for (std::size_t k = 0; k < tones_.size(); ++k) {
-      if (!(mask & (1u << k))) continue;
-      for (std::size_t b = 0; b < nb; ++b) {
-        spec_a_[b] += spec_c_[k][b];
-        spec_b_[b] += spec_s_[k][b];
-      }
-    }
-    for (std::size_t b = 0; b < nb; ++b) spec_w_[b] = spec_y_[b] * std::conj(spec_a_[b]);
-    fft_->inverse(spec_w_.data(), re_.data());
-    for (std::size_t b = 0; b < nb; ++b) spec_w_[b] = spec_y_[b] * std::conj(spec_b_[b]);
-    fft_->inverse(spec_w_.data(), im_.data());
-    const std::size_t lags = std::min<std::size_t>(2 * static_cast<std::size_t>(search_) + 1, nfft_ - len_ + 1);
-    std::size_t best = 0;
-    best_e = -1.0;
-    auto env = [&](std::size_t l) { return std::hypot(static_cast<double>(re_[l]), static_cast<double>(im_[l])); };
-    for (std::size_t l = 0; l < lags; ++l) {
-      const double e = env(l);
-      if (e > best_e) {
-        best_e = e;
-        best = l;
-      }
-    }
-    off = 0.0;
-    if (best > 0 && best + 1 < lags) {
-      const double a = env(best - 1), b = best_e, d = env(best + 1);
-      const double den = a - 2 * b + d;
-      if (den < 0) off = std::clamp(0.5 * (a - d) / den, -0.5, 0.5);
-    }
-    return best;
-  }
-
-  // Tones on at arrival frame `at`: full-length per-tone correlation power over its noise
-  // expectation (from the tone-bank floor) above threshold_db, and within 6 dB of the strongest
-  // tone (the tones of a beep have equal amplitudes). snr_db: mean over the tones on;
-  // confidence: fraction of them more than threshold_db above that.
-  std::uint32_t tone_mask_at(const Channel& ch, std::uint64_t at, double& snr_db, double& conf) noexcept {
-    double pmax = 0.0;
-    for (std::size_t k = 0; k < tones_.size(); ++k) {
-      const float* tc = &tone_c_[k * len_];
-      const float* ts = &tone_s_[k * len_];
-      double re = 0.0, im = 0.0;
-      for (std::size_t n = 0; n < len_; ++n) {
-        const float y = ch.raw[(at + n) & ring_mask_];
-        re += y * tc[n];
-        im += y * ts[n];
-      }
-      pow_[k] = re * re + im * im;
-      pmax = std::max(pmax, pow_[k]);
+      l[k] = 10.0 * std::log10(std::max(p.level[k], 1e-30) / std::max(p.floor[k], 1e-30));
+      lmax = std::max(lmax, l[k]);
+      pmax = std::max(pmax, p.level[k]);
     }
     std::uint32_t mask = 0;
+    for (std::size_t k = 0; k < tones_.size(); ++k)
+      if (l[k] > id_db_ && p.level[k] > rel_ * pmax) mask |= 1u << k;
+    if (mask == 0) return 0;
+    conf = 1.0;
+    if (!candidates_.empty()) {
+      double best = -1e300, second = -1e300;
+      std::uint32_t arg = 0;
+      for (std::uint32_t m : candidates_) {
+        double sc = 0.0;
+        for (std::size_t k = 0; k < tones_.size(); ++k) sc += ((m >> k) & 1u ? 1.0 : -1.0) * (l[k] - 0.5 * lmax);
+        if (sc > best) {
+          second = best;
+          best = sc;
+          arg = m;
+        } else if (sc > second) {
+          second = sc;
+        }
+      }
+      // The candidate must explain the strong tones: every tone within 10 dB of the strongest is in it.
+      for (std::size_t k = 0; k < tones_.size(); ++k)
+        if (l[k] > lmax - 10.0 && l[k] > id_db_ && !((arg >> k) & 1u)) return 0;
+      mask = arg;
+      conf = candidates_.size() > 1 ? std::clamp((best - second) / std::max(lmax, 1e-9), 0.0, 1.0) : 1.0;
+    }
     double sum = 0.0;
     int on = 0, strong = 0;
     for (std::size_t k = 0; k < tones_.size(); ++k) {
-      const double noise = std::max(ch.floor[k], 1e-30) * corr_per_frame_;
-      if (pow_[k] > thr_ * noise && pow_[k] > 0.25 * pmax) {
-        mask |= 1u << k;
-        const double r = 10.0 * std::log10(pow_[k] / noise);
-        sum += r;
-        ++on;
-        strong += pow_[k] > thr_ * thr_ * noise;
-      }
+      if (!((mask >> k) & 1u)) continue;
+      sum += l[k];
+      ++on;
+      strong += l[k] > 2.0 * thr_db_;
     }
     snr_db = on > 0 ? sum / on : 0.0;
-    conf = on > 0 ? static_cast<double>(strong) / on : 0.0;
+    conf *= on > 0 ? static_cast<double>(strong) / on : 0.0;
     return mask;
   }
 
-  void finalize(std::uint32_t c, EventSink& out) noexcept {
+  // [RT] Projected energy of the window win_y_[0..nw) onto the onset model starting at offset
+  // `tau8` (in 1/kOs samples from the window start); amplitude estimate in `amp`.
+  double fit_energy(std::size_t nw, std::int64_t tau8, double& amp) const noexcept {
+    double ys = 0.0, yc = 0.0, ss = 0.0, cc = 0.0, sc = 0.0;
+    for (std::size_t n = 0; n < nw; ++n) {
+      const std::int64_t u = static_cast<std::int64_t>(n * kOs) - tau8;
+      if (u < 0) continue;
+      if (static_cast<std::size_t>(u) >= fine_n_) break;
+      const double s = mt_s_[static_cast<std::size_t>(u)], c = mt_c_[static_cast<std::size_t>(u)];
+      const double y = win_y_[n];
+      ys += y * s;
+      yc += y * c;
+      ss += s * s;
+      cc += c * c;
+      sc += s * c;
+    }
+    if (coherent_) {  // known carrier phase: one real amplitude (sign free)
+      amp = ss > 1e-30 ? std::fabs(ys) / ss : 0.0;
+      return ss > 1e-30 ? ys * ys / ss : 0.0;
+    }
+    const double det = ss * cc - sc * sc;
+    if (!(det > 1e-30)) {
+      amp = 0.0;
+      return 0.0;
+    }
+    const double a = (cc * ys - sc * yc) / det, b = (ss * yc - sc * ys) / det;
+    amp = std::sqrt(a * a + b * b);
+    return a * ys + b * yc;
+  }
+
+  // [RT] Analysis of one closed beep: identity, leading edge, onset fit, decay features.
+  void finalize(std::uint32_t c, const Pending& p, EventSink& out) noexcept {
     Channel& ch = chans_[c];
-    ch.state = State::idle;
-    std::uint32_t mask = 0;
-    for (std::size_t k = 0; k < tones_.size(); ++k)
-      if (ch.peak[k] > thr_ * std::max(ch.floor[k], 1e-30)) mask |= 1u << k;
-    if (mask == 0) mask = (1u << tones_.size()) - 1u;  // opened by the summed power: try every tone
-    // Matched filter around the coarse onset.
-    const std::int64_t coarse = static_cast<std::int64_t>(ch.open_frame) - static_cast<std::int64_t>(frame_ / 2);
-    const std::int64_t seg0 = coarse - search_;
-    if (seg0 < static_cast<std::int64_t>(ch.start_frame) ||
-        static_cast<std::uint64_t>(seg0) + nfft_ > ch.end_frame ||
-        static_cast<std::uint64_t>(seg0) + ring_size_ < ch.end_frame)
+    double snr_db = 0.0, conf = 0.0;
+    const std::uint32_t mask = identity(p, snr_db, conf);
+    if (mask == 0) {
+      ++rejected_;
+      return;
+    }
+    // Segment: noise reference, then the search range around the coarse onset.
+    const std::int64_t coarse = static_cast<std::int64_t>(p.open_frame) - static_cast<std::int64_t>(frame_);
+    const std::int64_t seg0 = coarse - search_ - static_cast<std::int64_t>(noise_len_);
+    if (seg0 < static_cast<std::int64_t>(ch.start_frame) || static_cast<std::uint64_t>(seg0) + nfft_ > ch.end_frame ||
+        static_cast<std::uint64_t>(seg0) + ring_size_ < ch.end_frame + pre_)
       return;  // not enough contiguous audio around it
     for (std::size_t i = 0; i < nfft_; ++i) seg_[i] = ch.raw[(static_cast<std::uint64_t>(seg0) + i) & ring_mask_];
     fft_->forward(seg_.data(), spec_y_.data());
-    double best_e = 0.0, off = 0.0;
-    std::size_t best = locate(mask, best_e, off);
-    // Identity from the full-length per-tone matched filters at the arrival (≈ 20 dB more gain than
-    // one tone-bank frame); a changed identity gets a second arrival search with its template.
-    double snr_db = 0.0, conf = 0.0;
-    const std::uint32_t mask2 = tone_mask_at(ch, static_cast<std::uint64_t>(seg0) + best, snr_db, conf);
-    if (mask2 == 0) {
+    const std::size_t nb = nfft_ / 2 + 1;
+    for (int part = 0; part < 2; ++part) {
+      std::fill(spec_w_.begin(), spec_w_.end(), cf{});
+      for (std::size_t k = 0; k < tones_.size(); ++k) {
+        if (!((mask >> k) & 1u)) continue;
+        const std::vector<cf>& t = part == 0 ? spec_c_[k] : spec_s_[k];
+        for (std::size_t b = 0; b < nb; ++b) spec_w_[b] += spec_y_[b] * std::conj(t[b]);
+      }
+      fft_->inverse(spec_w_.data(), part == 0 ? re_.data() : im_.data());
+    }
+    const std::size_t lags = nfft_ - onset_len_ + 1;
+    for (std::size_t l = 0; l < lags; ++l)
+      stat_[l] = static_cast<double>(re_[l]) * re_[l] + static_cast<double>(im_[l]) * im_[l];
+    // Noise: median of the statistic over the lags whose template lies in the noise reference.
+    const std::size_t nn = noise_len_ - onset_len_;
+    std::copy(stat_.begin(), stat_.begin() + static_cast<std::ptrdiff_t>(nn), sorted_.begin());
+    std::nth_element(sorted_.begin(), sorted_.begin() + static_cast<std::ptrdiff_t>(nn / 2), sorted_.begin() + static_cast<std::ptrdiff_t>(nn));
+    const double noise = std::max(sorted_[nn / 2] / std::log(2.0), 1e-30);  // exponential: mean = median / ln 2
+    std::size_t edge = lags;
+    for (std::size_t l = noise_len_; l < lags; ++l)
+      if (stat_[l] > onset_thr_ * noise) {
+        edge = l;
+        break;
+      }
+    if (edge == lags) {
       ++rejected_;
-      return;  // no tone of the set clears the full-length matched filter: not a beep
+      return;
     }
-    if (mask2 != mask) {
-      mask = mask2;
-      best = locate(mask, best_e, off);
-      tone_mask_at(ch, static_cast<std::uint64_t>(seg0) + best, snr_db, conf);
+    // Onset fit: identity's fine templates.
+    std::fill(mt_s_.begin(), mt_s_.end(), 0.0f);
+    std::fill(mt_c_.begin(), mt_c_.end(), 0.0f);
+    for (std::size_t k = 0; k < tones_.size(); ++k) {
+      if (!((mask >> k) & 1u)) continue;
+      for (std::size_t i = 0; i < fine_n_; ++i) {
+        mt_s_[i] += fine_s_[k * fine_n_ + i];
+        mt_c_[i] += fine_c_[k * fine_n_ + i];
+      }
     }
-    const double arrival = static_cast<double>(seg0) + static_cast<double>(best) + off;
-    // Amplitude: correlation peak = a/K · K tones · Σw²/2 / nfft scaling (unnormalised inverse).
-    const double amp = best_e / static_cast<double>(nfft_) / tone_energy_;
+    double centre = static_cast<double>(seg0) + static_cast<double>(edge);  // absolute frame estimate
+    double amp = 0.0;
+    // Passes: (range before, range after the current estimate in samples, step in 1/kOs samples).
+    const std::int64_t passes[3][3] = {{static_cast<std::int64_t>(onset_len_ + pre_), static_cast<std::int64_t>(onset_len_), 8},
+                                       {24, 24, 2},
+                                       {3, 3, 1}};
+    for (int pass = 0; pass < 3; ++pass) {
+      const std::int64_t c0 = static_cast<std::int64_t>(std::floor(centre));
+      // Fixed window for all candidates of the pass: pre_ before the estimate to fit_len_ after it.
+      // (pass 0: from pre_ before the earliest to fit_len_ after the latest candidate).
+      const std::int64_t w0 = c0 - passes[pass][0] * (pass == 0) - static_cast<std::int64_t>(pre_);
+      const std::size_t nw = std::min(static_cast<std::size_t>(c0 + (pass == 0 ? passes[0][1] : 0) - w0) + fit_len_, win_y_.size());
+      if (w0 < static_cast<std::int64_t>(ch.start_frame) || static_cast<std::uint64_t>(w0) + nw > ch.end_frame) return;
+      for (std::size_t n = 0; n < nw; ++n) win_y_[n] = ch.raw[(static_cast<std::uint64_t>(w0) + n) & ring_mask_];
+      const std::int64_t step = passes[pass][2];
+      const std::int64_t k8 = static_cast<std::int64_t>(kOs);
+      std::int64_t best = 0;
+      double best_e = -1.0, e_prev = -1.0, e_next = -1.0, prev = -1.0;
+      bool want_next = false;
+      for (std::int64_t t8 = (c0 - passes[pass][0] - w0) * k8; t8 <= (c0 + passes[pass][1] - w0) * k8; t8 += step) {
+        double a = 0.0;
+        const double e = fit_energy(nw, t8, a);
+        if (want_next) {
+          e_next = e;
+          want_next = false;
+        }
+        if (e > best_e) {
+          best_e = e;
+          best = t8;
+          e_prev = prev;
+          amp = a;
+          want_next = true;
+          e_next = -1.0;
+        }
+        prev = e;
+      }
+      double off = 0.0;
+      if (pass == 2 && e_prev >= 0.0 && e_next >= 0.0) {
+        const double den = e_prev - 2 * best_e + e_next;
+        if (den < 0) off = std::clamp(0.5 * (e_prev - e_next) / den, -0.5, 0.5) * static_cast<double>(step);
+      }
+      centre = static_cast<double>(w0) + (static_cast<double>(best) + off) / static_cast<double>(kOs);
+    }
+    const double arrival = centre;
 
     AudioDetection d;
     d.device = device_;
@@ -374,7 +568,7 @@ class MultitoneDetector final : public Detector {
     d.sample_rate_hz = fs_;
     d.snr_db = static_cast<float>(snr_db);
     d.confidence = static_cast<float>(conf);
-    d.amplitude = static_cast<float>(amp);
+    d.amplitude = static_cast<float>(amp / std::max(1, std::popcount(mask)));
     if (!out.emit(Event{d})) ++dropped_;
 
     // Decay features on the smoothed band-passed energy.
@@ -391,28 +585,36 @@ class MultitoneDetector final : public Detector {
     const std::int64_t from = a0 - static_cast<std::int64_t>(smooth_ / 2);
     if (from >= static_cast<std::int64_t>(ch.start_frame) &&
         static_cast<std::uint64_t>(from) + n_env + smooth_ <= ch.end_frame) {
+      // Band-pass only where needed (not per sample in the stream): from the noise window before the
+      // beep, after settle_ samples for the filter's transient, to the end of the decay window.
+      const std::int64_t b0 = std::max<std::int64_t>(static_cast<std::int64_t>(ch.start_frame),
+                                                     from - static_cast<std::int64_t>(frame_ + settle_));
+      const std::int64_t b1 = from + static_cast<std::int64_t>(n_env + smooth_);
+      bpf_.reset();
+      for (std::int64_t k = b0; k < b1; ++k)
+        bp_buf_[static_cast<std::size_t>(k - b0)] = bpf_.process(ch.raw[static_cast<std::uint64_t>(k) & ring_mask_]);
+      auto bp = [&](std::int64_t k) { return bp_buf_[static_cast<std::size_t>(k - b0)]; };
       double acc = 0.0;
       for (std::size_t i = 0; i < smooth_; ++i) {
-        const float v = ch.bp[(static_cast<std::uint64_t>(from) + i) & ring_mask_];
+        const float v = bp(from + static_cast<std::int64_t>(i));
         acc += static_cast<double>(v) * v;
       }
       for (std::size_t i = 0; i < n_env; ++i) {
         env_[i] = acc / static_cast<double>(smooth_);  // centred on frame a0 + i
-        const float vin = ch.bp[(static_cast<std::uint64_t>(from) + smooth_ + i) & ring_mask_];
-        const float vout = ch.bp[(static_cast<std::uint64_t>(from) + i) & ring_mask_];
+        const float vin = bp(from + static_cast<std::int64_t>(smooth_ + i));
+        const float vout = bp(from + static_cast<std::int64_t>(i));
         acc += static_cast<double>(vin) * vin - static_cast<double>(vout) * vout;
       }
       f.decay_s = decay_times(std::span<const double>(env_.data(), n_env), 0, len_, len_, fs_);
-      // Noise: the band energy just before the beep.
-      double noise = 0.0;
-      const std::size_t pre = std::min<std::size_t>(frame_, static_cast<std::size_t>(std::max<std::int64_t>(0, from - static_cast<std::int64_t>(ch.start_frame))));
+      double noise_e = 0.0;
+      const std::size_t pre = std::min<std::size_t>(frame_, static_cast<std::size_t>(std::max<std::int64_t>(0, from - b0)));
       for (std::size_t i = 1; i <= pre; ++i) {
-        const float v = ch.bp[(static_cast<std::uint64_t>(from) - i) & ring_mask_];
-        noise += static_cast<double>(v) * v;
+        const float v = bp(from - static_cast<std::int64_t>(i));
+        noise_e += static_cast<double>(v) * v;
       }
       double peak = 0.0;
       for (std::size_t i = 0; i < len_; ++i) peak = std::max(peak, env_[i]);
-      f.noise_margin_db = pre > 0 && noise > 0 ? static_cast<float>(10.0 * std::log10(peak / (noise / pre))) : kNaN;
+      f.noise_margin_db = pre > 0 && noise_e > 0 ? static_cast<float>(10.0 * std::log10(peak / (noise_e / pre))) : kNaN;
     }
     if (!out.emit(Event{f})) ++dropped_;
   }
@@ -424,27 +626,32 @@ class MultitoneDetector final : public Detector {
   std::uint32_t channels_ = 0;
   double fs_ = 44100.0;
   std::vector<double> tones_;
+  std::vector<std::uint32_t> candidates_;
   double duration_s_ = 0.05, fade_s_ = 0.005;
   std::size_t frame_ = 441, hop_ = 110, len_ = 0, tail_ = 0, smooth_ = 1, nfft_ = 0;
+  std::size_t onset_len_ = 176, fit_len_ = 176, pre_ = 60, noise_len_ = 882, fine_n_ = 0, before_ = 0, after_ = 0;
   std::int64_t search_ = 0;
-  double thr_ = 10.0, beta_ = 0.01;
+  double thr_ = 10.0, thr_db_ = 10.0, id_db_ = 6.0, beta_ = 0.01, rise_ = 4.0, rel_ = 0.003, onset_thr_ = 30.0;
   int min_tones_ = 1;
-  std::uint64_t warmup_hops_ = 1;
+  bool coherent_ = false;
+  std::uint64_t warmup_hops_ = 1, hold_hops_ = 1, max_active_hops_ = 1;
   dsp::GoertzelBank bank_;
   std::vector<float> win_;
   std::vector<dsp::Biquad> sos_;
   std::unique_ptr<RealFft> fft_;
   std::vector<std::vector<cf>> spec_c_, spec_s_;
+  std::vector<float> fine_s_, fine_c_, mt_s_, mt_c_, win_y_, bp_buf_;
+  dsp::SosFilter bpf_;
+  std::size_t settle_ = 441;
   double tone_energy_ = 1.0;
-  double corr_per_frame_ = 1.0;
   double sum_thr_ = 1e300;
-  std::uint64_t rejected_ = 0;  // Σw² (beep envelope) / Σhann² (tone-bank frame): noise scaling
-  std::vector<float> tone_c_, tone_s_;  // per tone, len_ samples: w(n)·cos / w(n)·sin
+  std::uint64_t rejected_ = 0, overflow_ = 0;
   std::size_t ring_size_ = 0, ring_mask_ = 0;
   std::vector<Channel> chans_;
   std::vector<float> frame_buf_, seg_, re_, im_;
-  std::vector<double> pow_, env_;
-  std::vector<cf> spec_y_, spec_a_, spec_b_, spec_w_;
+  std::vector<double> pow_, env_, stat_, sorted_;
+  std::array<double, kMaxBodyHops> med_{};
+  std::vector<cf> spec_y_, spec_w_;
   std::uint64_t expected_ = 0;
   bool have_expected_ = false;
   std::uint64_t dropped_ = 0;
@@ -464,13 +671,25 @@ const ParamSchema& schema() {
       float_param("duration_s", 0.05, 0.002, 2.0, "s", "Beep duration (the emitters' multitone `duration`)."),
       float_param("fade_s", 0.005, 0.0, 1.0, "s", "Raised-cosine fade of the beep (the emitters' `fade`)."),
       float_param("frame_s", 0.01, 0.0005, 0.5, "s", "Tone-bank analysis frame (Hann window)."),
-      float_param("hop_s", 0.0025, 0.0001, 0.5, "s", "Tone-bank hop."),
+      float_param("hop_s", 0.005, 0.0001, 0.5, "s", "Tone-bank hop."),
       float_param("threshold_db", 12.0, 1.0, 80.0, "dB", "A tone is on when its power exceeds its noise floor by this."),
       int_param("min_tones", std::int64_t{1}, 1, 16, "", "Tones that must be on to open a beep."),
       float_param("floor_time_constant_s", 1.0, 0.01, 3600.0, "s", "Time constant of the per-tone noise floors."),
       float_param("warmup_s", 0.05, 0.0, 60.0, "s", "Noise floors learnt for this long before the first beep."),
       float_param("tail_s", 0.15, 0.0, 5.0, "s", "Reverberation tail analysed after the beep (decay features)."),
       float_param("smoothing_s", 0.002, 0.0001, 0.1, "s", "Moving-average length of the energy envelope."),
+      float_list_param("identities", std::vector<double>{}, 1.0, 65535.0, "",
+                       "Candidate identities (tone masks, bit k = tones_hz[k]); empty = the measured tone set.", 0, 64),
+      bool_param("from_scene", false, "Identities, duration_s and fade_s from the scene's multitone emitters (replay)."),
+      float_param("hold_s", 0.15, 0.0, 10.0, "s", "Floors learn only this long after the last tone activity (beep tails)."),
+      float_param("max_active_s", 0.6, 0.05, 60.0, "s", "Activity longer than this is not a beep: floors learn through it."),
+      float_param("rise_db", 6.0, 1.0, 40.0, "dB", "Rise of the summed tone power within 3 hops that opens a beep on a tail."),
+      float_param("identity_db", 6.0, 1.0, 80.0, "dB", "A tone is in the identity when its mean power over the beep body exceeds its floor by this."),
+      float_param("relative_db", 25.0, 3.0, 80.0, "dB", "A tone is on only within this of the strongest tone (Doppler leakage, fading)."),
+      float_param("onset_threshold_db", 15.0, 3.0, 60.0, "dB", "Leading edge: onset statistic over its noise level."),
+      enum_param("fit_phase", "free", {"free", "known"},
+                 "Onset fit: `free` = complex amplitude (any phase shift of the path), `known` = the format's sine phases (carrier-resolved; a path's phase shift biases it)."),
+      float_param("fit_window_s", 0.003, 0.0005, 0.05, "s", "Onset fit window after the first path."),
   };
   return schema;
 }
@@ -480,8 +699,8 @@ const locus_plugin_descriptor* descriptor() {
       LOCUS_PLUGIN_ABI_VERSION,
       LOCUS_PLUGIN_DETECTOR,
       "multitone",
-      "0.1.0",
-      "SpyLoc multitone beeps: tone-bank identity (MAC bits), matched-filter arrival, decay features T5..T30",
+      "0.2.0",
+      "SpyLoc multitone beeps: tone-bank identity (MAC bits), leading-edge first-path arrival, decay features T5..T30",
       kInputAudio,
       &schema_fn,
       &create,

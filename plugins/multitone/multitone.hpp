@@ -2,33 +2,52 @@
 // set of tones (default 10 tones, 18000 + 250·k Hz); the subset is the beacon's identity, bit k of
 // the identity (the low ten bits of its MAC address) switching tone f_k on.
 //
+// Why this design (issue 16): beacons beep in turn every 0.25-0.35 s, 60 ms each, with reverberant
+// tails; the walker moves (Doppler up to ±0.4 %, i.e. ±75 Hz: a 60 ms coherent matched filter loses
+// its gain); all tones are multiples of the 250 Hz grid, so any steady-state (full-beep) matched
+// filter envelope repeats every 4 ms and the echoes alias into it. Only the beep's start (its fade-in
+// transient) tells where the first path is. So:
+//
 // Per channel, streaming:
-//   1. tone bank: every hop_s, the Hann-windowed Goertzel power of each tone over the last frame_s;
-//      per-tone noise floors track while no beep is in progress;
-//   2. beep: at least min_tones tones above their floor by threshold_db opens a beep; it closes when
-//      fewer remain for two hops (or duration_s + frame_s after it opened). Identity = the tones whose
-//      peak power during the beep exceeded their floor by threshold_db (bit k = tone k), reported as
-//      AudioDetection::template_index (so the MAC bits 0..9);
-//   3. arrival: matched filter (FFT) of the raw signal against the identified template (the tones of
-//      the identity with the duration_s/fade_s envelope of the scene format's multitone), envelope of
-//      the complex (analytic) correlation over ±(frame_s + 2·hop_s + fade_s) around the coarse onset,
-//      global maximum, parabolic interpolation. A tone grid of spacing Δf has envelope lobes every
-//      1/Δf (4 ms): the global maximum selects the right one while the SNR of the matched filter
-//      output exceeds the lobes' loss (~1/Δf / duration). A single-tone identity has no time
-//      resolution beyond its envelope: expect errors of tens of samples at low SNR;
-//   4. decay features (SpyLoc §V-B): the energy of the band-passed signal (Butterworth over the
+//   1. tone bank: every hop_s, the Hann-windowed Goertzel power of each tone over the last frame_s
+//      (short frames: tolerant of Doppler). Per-tone noise floors learn only while no tone is active
+//      and hold_s has passed since the last activity (so they never learn beeps or their tails),
+//      or slowly during a long activity (> max_active_s: music, not a beep);
+//   2. opening: a beep opens when the tone set becomes active (min_tones tones threshold_db above
+//      their floors, or the summed normalised power beyond K + 7·sqrt(K)) after being inactive, or
+//      when the summed power rises by rise_db within 3 hops (a beep on top of the previous one's
+//      tail). A beep's body closes after two quiet hops or duration_s + frame_s; closed beeps queue
+//      (up to 8) for analysis, so a new beep opens however close the previous one;
+//   3. identity: per tone, the median tone-bank power over the body frames; tone k is on when it
+//      exceeds its floor by identity_db (a mean over many frames, so lower than threshold_db) and
+//      lies within relative_db of the strongest tone. With
+//      `identities` (or from_scene: the scene's multitone emitters) the identity is the candidate
+//      that best explains the levels: score = Σ_k ±(L_k − L_max/2) (+ for tones in the candidate),
+//      L_k in dB over the floor; a measured mask that no candidate explains is rejected;
+//   4. first path: onset statistic c(τ) = |<y, o(·−τ)>|² with o the identity's first 1/Δf seconds
+//      (Δf the tone spacing: one period of the tone grid, cos and sin parts), by FFT over the search
+//      range; its noise level from the 20 ms before the search range; the earliest lag where c
+//      exceeds onset_threshold_db above that noise marks the leading edge (so a weak diffracted
+//      first path, 20-30 dB under later echoes, is still found when it clears the noise). Then a
+//      least-squares fit of the beep's onset a·s(t−τ) (complex amplitude: cos and sin templates,
+//      template zero before τ) over a window fixed for all candidates τ of a pass, ending
+//      fit_window_s after the current estimate: maximise the projected (explained) energy over τ on a
+//      1/8-sample grid (a coarse pass over ±1 grid period around the edge, then two recentred
+//      passes), parabolic interpolation. A τ too late leaves the signal before it unexplained, a τ
+//      too early misplaces the fade-in; only the first fit_window_s of the beep enter, before most
+//      echoes (3 ms: floor and ceiling images arrive 1.3-2.5 ms after the direct path at 7-15 m);
+//   5. decay features (SpyLoc §V-B): the energy of the band-passed signal (Butterworth over the
 //      tone band), smoothed by a centred moving average of smoothing_s, from the arrival to
 //      duration_s + tail_s later; reference = its peak during the direct sound; T_x = time from the
-//      END of the direct sound (arrival + duration_s: the paper's reverberation time counts "after the
-//      direct sound source stops") to the first sample after the peak where the envelope is x dB
-//      below the reference, x = 5, 10, ..., 30. Non-decreasing in x by construction; NaN when not
-//      reached inside the window (noise). A fade-out makes the no-reverberation values slightly
-//      negative (the direct sound already decays during its fade).
-// Events per beep: AudioDetection (frame = fractional frame of the beep's first sample, snr_db =
-// mean over the identity's tones of their peak power over floor, confidence = fraction of the
-// identity's tones whose power exceeds 2×threshold, amplitude = matched-filter estimate of the beep
-// amplitude a) followed by DecayFeatures (same frame and template_index).
-// Latency: duration_s + tail_s + frame_s after the beep's start.
+//      END of the direct sound (arrival + duration_s) to the first sample after the peak where the
+//      envelope is x dB below the reference, x = 5, 10, ..., 30. Non-decreasing in x; NaN when not
+//      reached inside the window (noise).
+// Events per beep: AudioDetection (frame = fractional frame of the beep's first sample (first path),
+// snr_db = mean over the identity's tones of their level over floor, confidence = fraction of the
+// identity's tones more than 2×threshold_db above their floors (with candidates: times the score
+// margin over the runner-up, clipped to 0..1), amplitude = onset fit amplitude estimate) followed by
+// DecayFeatures (same frame and template_index).
+// Latency: duration_s + tail_s + ~0.1 s after the beep's start.
 #pragma once
 
 #include <array>

@@ -551,3 +551,66 @@ TEST(RtSafety, ChirpOwnEmissionCancellerDoesNotAllocateOrLock) {
 }
 
 }  // namespace locus
+
+namespace locus {
+
+// The multitone detector's beep analysis (leading edge, onset fit, decay features) runs inside
+// process_audio when a beep's audio is complete: feed SpyLoc-like beeps (three identities, one every
+// 0.3 s) so that path runs in the measured section, several beeps queued at once.
+TEST(RtSafety, MultitoneBeepAnalysisDoesNotAllocateOrLock) {
+  Registry registry;
+  register_builtins(registry);
+  test::TestHost host;
+  FftwPlanner fftw({}, /*measure=*/false);
+  const locus_plugin_descriptor* d = registry.find_plugin("multitone");
+  ASSERT_NE(d, nullptr);
+  constexpr std::uint32_t kBlock = 256;
+  StreamInfo info;
+  info.device = "W";
+  info.channels = 1;
+  info.sample_rate_hz = 44100.0;
+  info.max_block_frames = kBlock;
+  auto detector = registry.create_detector("multitone");
+  HostContext ctx{host.log, host.clock, fftw, host.link, "multitone", "W"};
+  detector->configure(info, Params::defaults(*d->schema()), ctx);
+  // 6 s of beeps rendered before the measured section.
+  std::vector<float> x(static_cast<std::size_t>(6.0 * 44100.0), 0.0f);
+  const std::uint32_t masks[3] = {0b1100010001u, 0b1111010010u, 0b1010111100u};
+  int beeps = 0;
+  for (double t = 0.2; t < 5.7; t += 0.3, ++beeps) {
+    dsp::SignalSpec s;
+    s.type = "multitone";
+    for (int k = 0; k < 10; ++k)
+      if (masks[beeps % 3] & (1u << k)) s.tones_hz.push_back(18000.0 + 250.0 * k);
+    s.duration_s = 0.05;
+    s.fade_s = 0.005;
+    s.amplitude = 0.3;
+    dsp::SignalEvaluator ev(s, 44100.0);
+    const auto n0 = static_cast<std::size_t>(t * 44100.0);
+    for (std::size_t n = n0; n < n0 + 2300 && n < x.size(); ++n) x[n] += static_cast<float>(ev.value((n - t * 44100.0) / 44100.0));
+  }
+  std::uint32_t seed = 7;
+  for (float& v : x) {
+    seed = seed * 1664525u + 1013904223u;
+    v += 1e-4f * (static_cast<float>(seed >> 8) / 16777216.0f - 0.5f);
+  }
+  AudioRing ring(1, 1 << 16);
+  RtEventQueue queue("W", 1 << 14);
+  AudioBlockRunner runner(ring, kBlock, {detector.get()}, queue);
+  std::size_t pos = 0;
+  for (int i = 0; i < 20; ++i, pos += kBlock) {  // warm-up
+    ring.write(x.data() + pos, kBlock);
+    runner.step(false);
+  }
+  RtSection rt;
+  for (; pos + kBlock <= x.size(); pos += kBlock) {
+    ring.write(x.data() + pos, kBlock);
+    runner.step(false);
+  }
+  EXPECT_EQ(rt.allocs(), 0) << "multitone allocated in process_audio";
+  EXPECT_EQ(rt.frees(), 0) << "multitone freed in process_audio";
+  EXPECT_EQ(rt.locks(), 0) << "multitone locked a mutex in process_audio";
+  EXPECT_GE(queue.size_approx() + queue.dropped(), 2u * 15u) << "the beeps were not analysed (no events)";
+}
+
+}  // namespace locus

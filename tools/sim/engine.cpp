@@ -303,8 +303,9 @@ class DeviceRenderer {
     const dsp::SignalEvaluator& ev = *evaluators_[source_index(e.source_id)][static_cast<std::size_t>(e.signal_index)];
     for (std::size_t m = 0; m < channels_; ++m) {
       for (std::size_t p = 0; p < images_.size(); ++p) {
-        const double ta = arrival(s, images_[p], m, te0 + ev.begin_s());
-        const double tb = arrival(s, images_[p], m, te0 + ev.end_s());
+        const double extra_s = p == 0 ? obstruction_extra_m(e) / c_ : 0.0;
+        const double ta = arrival(s, images_[p], m, te0 + ev.begin_s()) + extra_s;
+        const double tb = arrival(s, images_[p], m, te0 + ev.end_s()) + extra_s;
         const double la = dev_.clock.local_from_true(std::min(ta, tb)) * fs_;
         const double lb = dev_.clock.local_from_true(std::max(ta, tb)) * fs_;
         PathWindow w{m, p, static_cast<std::int64_t>(std::floor(la)) - 2, static_cast<std::int64_t>(std::ceil(lb)) + 2};
@@ -460,6 +461,16 @@ class DeviceRenderer {
     }
   }
 
+  double obstruction_extra_m(const Emission& e) const {
+    double x = 0.0;
+    const double te0 = e.t_start_true_s();
+    for (const auto& o : sim_.acoustics.obstructions) {
+      const bool pair = (o.a == e.source_id && o.b == dev_.id) || (o.b == e.source_id && o.a == dev_.id);
+      if (pair && te0 >= o.t_begin_s && te0 < o.t_end_s) x += o.extra_path_m;
+    }
+    return x;
+  }
+
   double obstruction_gain(const Emission& e) const {
     double g = 1.0;
     const double te0 = e.t_start_true_s();
@@ -488,6 +499,7 @@ class DeviceRenderer {
                                    std::log(10.0) / 20.0
                              : 0.0;
     const double obstruct = obstruction_gain(e);
+    const double obstruct_extra_m = obstruction_extra_m(e);
     const double rmin = sim_.acoustics.min_distance_m;
     const bool rx_static = dev_.trajectory->is_static();
     const bool src_static = s.trajectory->is_static();
@@ -548,6 +560,7 @@ class DeviceRenderer {
           delay = t - te;
           r = delay * c_;
         }
+        if (w.image == 0) r += obstruct_extra_m;  // diffracted first path: longer
         const double te = t - r / c_;
         const double v = ev.value(te - te0);
         if (v != 0.0) out[i] += g / std::max(r, rmin) * v * (kappa > 0.0 ? std::exp(-kappa * r) : 1.0);
@@ -917,6 +930,7 @@ WriteReport SceneSimulator::write(const std::string& out_dir) const {
         if (!spec_e.sync_delay_s) continue;
         const double t_send = e->t_start_true_s() - *spec_e.sync_delay_s;
         const double t_rx = t_send + sim_.radio_latency_s + rng.uniform(-sim_.radio_jitter_s, sim_.radio_jitter_s);
+        if (sim_.radio_loss_probability > 0.0 && rng.uniform(0.0, 1.0) < sim_.radio_loss_probability) continue;
         const double local = d.clock.local_from_true(t_rx);
         if (local >= 0.0 && local < local_end) rows.emplace_back(local, e->source_id);
       }

@@ -24,7 +24,7 @@
 #include "locus/scene/ble_csv.hpp"
 #include "locus/scene/csv.hpp"
 #include "locus/scene/scene.hpp"
-#include "train/cli.hpp"
+#include "train/train.hpp"
 #include "app.hpp"
 
 namespace locus::app {
@@ -152,7 +152,7 @@ std::string report(const lb::EnvAwareModel& m, const std::vector<Window>& ws) {
 
 }  // namespace
 
-int train_locble(const TrainOptions& opt) {
+int train_locble(const LocBleTrainOptions& opt) {
   try {
     if (!(opt.window_s > 0.0)) throw std::runtime_error("--window-s must be > 0");
     std::vector<Window> train;

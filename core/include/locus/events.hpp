@@ -118,6 +118,10 @@ struct Estimate {
   double direction_std_rad = kNaN;     ///< 1-sigma of direction_rad, when given
   double distance_std_m = kNaN;        ///< 1-sigma of distance_m, when given
   std::uint32_t flags = 0;             ///< EstimateFlag bits
+  /// Line-of-sight verdict of the measurement this estimate was updated with (SpyLoc): 1 = LoS,
+  /// 0 = NLoS, -1 = none given (JSON key `los`, written only when given). Fits the padding after
+  /// `flags`: sizeof(Estimate) is unchanged.
+  std::int8_t los = -1;
 };
 
 /// Reverberation-decay features of one detected sound (SpyLoc's LoS/NLoS features T5..T30), emitted

@@ -29,7 +29,9 @@
 //    the JSON texts, Emitter::schedule takes a SignalSpec; Estimate gains direction_std_rad,
 //    distance_std_m and flags;
 // 5: AudioDetection::envelope_frame and carrier_period (consistent carrier cycles across arrivals).
-#define LOCUS_PLUGIN_ABI_VERSION 5u
+// 6: SceneSignal::has_anchor / anchor_m (a localizer knows the scene's anchored beacons, SpyLoc);
+//    Estimate::los (in the padding after flags).
+#define LOCUS_PLUGIN_ABI_VERSION 6u
 #define LOCUS_PLUGIN_ENUM_SYMBOL "locus_plugin_enum"
 
 extern "C" {

@@ -53,6 +53,8 @@ struct SignalSpec {
 struct SceneSignal {
   std::string id;      ///< the emitting device's or emitter's id
   SignalSpec signal;
+  bool has_anchor = false;            ///< the emitter's position is known (an anchored beacon, SpyLoc)
+  std::array<double, 3> anchor_m{};   ///< its anchor in the world frame (metres) when has_anchor
 };
 
 /// One problem with a signal: the field it concerns, and where in the text it was (0 = unknown).

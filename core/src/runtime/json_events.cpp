@@ -109,6 +109,7 @@ struct ToJson {
     if (e.flags & kEstimateInconsistent) flags.push_back("inconsistent");
     if (e.flags & kEstimateWeak) flags.push_back("weak");
     j["flags"] = flags;
+    if (e.los >= 0) j["los"] = e.los == 1;
   }
 };
 

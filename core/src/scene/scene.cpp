@@ -155,10 +155,18 @@ std::optional<Vec3> parse_anchor(Checker& ck, const YAML::Node& n, const std::st
 
 std::vector<SceneSignal> scene_signals(const Scene& scene) {
   std::vector<SceneSignal> out;
+  auto add = [&out](const std::string& id, const dsp::SignalSpec& sig, const std::optional<Vec3>& anchor) {
+    SceneSignal s{id, sig};
+    if (anchor) {
+      s.has_anchor = true;
+      s.anchor_m = *anchor;
+    }
+    out.push_back(std::move(s));
+  };
   for (const DeviceSpec& d : scene.devices)
-    for (const dsp::SignalSpec& sig : d.emits) out.push_back(SceneSignal{d.id, sig});
+    for (const dsp::SignalSpec& sig : d.emits) add(d.id, sig, d.anchor_position_m);
   for (const EmitterSpec& e : scene.emitters)
-    for (const dsp::SignalSpec& sig : e.emits) out.push_back(SceneSignal{e.id, sig});
+    for (const dsp::SignalSpec& sig : e.emits) add(e.id, sig, e.anchor_position_m);
   return out;
 }
 

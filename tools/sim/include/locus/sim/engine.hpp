@@ -208,6 +208,10 @@ struct Obstruction {
   double attenuation_db = 20.0;
   double t_begin_s = -std::numeric_limits<double>::infinity();
   double t_end_s = std::numeric_limits<double>::infinity();
+  /// The direct path is this much longer while obstructed (diffraction around an edge: the first
+  /// path bends over it); 0 = only attenuated. Last, so aggregate initialisers {a, b, dB, t0, t1} keep
+  /// their meaning.
+  double extra_path_m = 0.0;
 };
 
 /// Acoustic background noise at each microphone, relative to the reference level: snr_db is the SNR
@@ -285,6 +289,7 @@ struct Simulation {
   double truth_rate_hz = 100.0;           ///< truth.csv rows per second for moving objects
   double radio_latency_s = 200e-6;        ///< sync reception: mean delay after sending
   double radio_jitter_s = 50e-6;          ///< sync reception: uniform ± jitter
+  double radio_loss_probability = 0.0;    ///< sync reception: a sync is lost with this probability
   std::optional<Eigen::Vector3d> magnetic_field_world_ut;
   std::string environment_yaml;           ///< extra free-form environment entries (YAML mapping text); the
                                           ///< room size is added automatically

@@ -1,0 +1,372 @@
+// The `spyloc` localizer: sync/beep pairing, LoS classification, fix and tracking. Design in
+// spyloc.hpp; classifier.cpp, solver.cpp and tracker.cpp hold the maths.
+#include "spyloc.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <deque>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "classifier.hpp"
+#include "solver.hpp"
+#include "tracker.hpp"
+
+namespace locus::plugins::spyloc {
+
+namespace {
+
+// A relative model path is looked up from the working directory and then its parents (so
+// `config/spyloc-los.yaml` works from the source tree and from a build directory inside it).
+std::string find_model(const std::string& path) {
+  namespace fs = std::filesystem;
+  const fs::path p(path);
+  if (p.is_absolute() || fs::exists(p)) return path;
+  std::error_code ec;
+  for (fs::path dir = fs::current_path(ec); !ec && !dir.empty(); dir = dir.parent_path()) {
+    if (fs::exists(dir / p)) return (dir / p).string();
+    if (dir == dir.parent_path()) break;
+  }
+  return path;  // not found: load() reports it
+}
+
+struct Beacon {
+  std::string id;
+  std::uint32_t mask = 0;
+  std::array<double, 3> anchor{};
+  double delay_s = 0.0;
+  std::deque<double> syncs;  ///< recent sync receive times (local)
+};
+
+struct PendingBeep {
+  double frame = 0.0;
+  double t_s = 0.0;
+  std::size_t beacon = 0;
+};
+
+struct InitRange {
+  std::size_t beacon = 0;
+  double t_s = 0.0;
+  double range_m = 0.0;
+};
+
+class SpyLocLocalizer final : public Localizer {
+ public:
+  /// [main]
+  void configure(const Params& params, HostContext& ctx) override {
+    log_ = &ctx.log;
+    instance_ = std::string(ctx.instance);
+    device_ = !ctx.device.empty() ? std::string(ctx.device) : params.get_string("device");
+    if (device_.empty()) throw std::runtime_error("spyloc: param 'device': expected the walker's device id (none given, no replay device)");
+    detector_ = params.get_string("detector");
+    c_ = params.get_float("speed_of_sound_mps");
+    if (c_ == 0.0) c_ = 331.3 * std::sqrt(1.0 + params.get_float("temperature_c") / 273.15);
+    z_ = params.get_float("device_height_m");
+    height_std_ = params.get_float("height_std_m");
+    range_std_ = params.get_float("range_std_m");
+    max_range_ = params.get_float("max_range_m");
+    slack_s_ = params.get_float("sync_slack_s");
+    los_thr_ = params.get_float("los_threshold");
+    init_window_s_ = params.get_float("init_window_s");
+    reinit_after_ = static_cast<int>(params.get_int("reinit_after"));
+    std_scale_ = params.get_float("std_scale");
+    std_floor_ = params.get_float("std_floor_m");
+    nlos_bias_m_ = params.get_float("nlos_bias_m");
+    tcfg_.accel_std_mps2 = params.get_float("accel_std_mps2");
+    tcfg_.max_speed_mps = params.get_float("max_speed_mps");
+    tcfg_.gate_sigma = params.get_float("gate_sigma");
+    tcfg_.gate_long_sigma = params.get_float("gate_long_sigma");
+    region_ = params.get_floats("region_m");
+    if (!region_.empty() && (region_.size() != 4 || !(region_[2] > region_[0]) || !(region_[3] > region_[1])))
+      throw std::runtime_error("spyloc: param 'region_m': expected [x_min, y_min, x_max, y_max] with max > min, or []");
+    const std::vector<double>& tones = params.get_floats("tones_hz");
+
+    if (ctx.geometry == nullptr || ctx.geometry->scene_emits.empty())
+      throw std::runtime_error("spyloc: no scene geometry: the beacons (anchored multitone emitters with sync_delay_s) "
+                               "come from the scene (locus replay SCENE)");
+    for (const SceneSignal& s : ctx.geometry->scene_emits) {
+      if (s.signal.type != "multitone") continue;
+      const std::string what = "spyloc: scene emitter '" + s.id + "'";
+      if (!s.has_anchor) {
+        ctx.log.warn(what + ": multitone without an anchor: not a beacon, ignored");
+        continue;
+      }
+      if (!s.signal.sync_delay_s) throw std::runtime_error(what + ": field 'sync_delay_s': a beacon's multitone needs its sync-to-beep delay");
+      Beacon b;
+      b.id = s.id;
+      b.anchor = s.anchor_m;
+      b.delay_s = *s.signal.sync_delay_s;
+      for (double f : s.signal.tones_hz) {
+        std::size_t k = tones.size();
+        for (std::size_t i = 0; i < tones.size(); ++i)
+          if (std::fabs(tones[i] - f) < 0.5) k = i;
+        if (k == tones.size())
+          throw std::runtime_error(what + ": field 'tones_hz': " + std::to_string(f) + " Hz is not in the tone grid (param tones_hz)");
+        b.mask |= 1u << k;
+      }
+      for (const Beacon& o : beacons_)
+        if (o.mask == b.mask) throw std::runtime_error(what + ": same tone set as beacon '" + o.id + "': beeps could not be told apart");
+      beacons_.push_back(std::move(b));
+    }
+    if (beacons_.size() < 3)
+      throw std::runtime_error("spyloc: the scene declares " + std::to_string(beacons_.size()) +
+                               " anchored multitone beacons; at least 3 are needed for a fix");
+    const std::string model = params.get_string("los_model");
+    if (!model.empty()) {
+      classifier_.load(find_model(model));
+    } else {
+      ctx.log.warn("spyloc: no los_model: every beep is taken as LoS (only the innovation gate rejects NLoS ranges)");
+    }
+    tracker_ = Tracker(tcfg_);
+  }
+
+  /// [main]
+  std::vector<EventType> subscriptions() const override {
+    return {EventType::RadioSync, EventType::AudioDetection, EventType::DecayFeatures};
+  }
+
+  /// [main]
+  void on_event(const Event& event, Publisher& out) override {
+    if (const auto* s = std::get_if<RadioSync>(&event)) {
+      if (s->device.view() != device_) return;
+      for (Beacon& b : beacons_)
+        if (s->source.view() == b.id) {
+          b.syncs.push_back(s->t_s);
+          while (b.syncs.size() > 16) b.syncs.pop_front();
+        }
+    } else if (const auto* d = std::get_if<AudioDetection>(&event)) {
+      if (d->device.view() != device_ || !(d->sample_rate_hz > 0)) return;
+      if (!detector_.empty() && d->detector.view() != detector_) return;
+      for (std::size_t i = 0; i < beacons_.size(); ++i)
+        if (beacons_[i].mask == d->template_index) {
+          pending_.push_back(PendingBeep{d->frame, d->frame / d->sample_rate_hz, i});
+          while (pending_.size() > 8) pending_.pop_front();
+          return;
+        }
+      ++unknown_;
+    } else if (const auto* f = std::get_if<DecayFeatures>(&event)) {
+      if (f->device.view() != device_) return;
+      if (!detector_.empty() && f->detector.view() != detector_) return;
+      for (auto it = pending_.begin(); it != pending_.end(); ++it)
+        if (it->frame == f->frame) {
+          const PendingBeep p = *it;
+          pending_.erase(it);
+          DecayVector v;
+          for (std::size_t k = 0; k < kDecayFeatures; ++k) v[k] = f->decay_s[k];
+          beep(p, v, out);
+          return;
+        }
+    }
+  }
+
+  /// [main]
+  void finish(Publisher&) override {
+    if (log_)
+      log_->info("spyloc " + instance_ + ": " + std::to_string(beeps_) + " beeps, " + std::to_string(no_sync_) +
+                 " without a sync, " + std::to_string(nlos_) + " NLoS, " + std::to_string(gated_) + " LoS ranges gated out, " +
+                 std::to_string(inits_) + " fixes, " + std::to_string(published_) + " estimates");
+  }
+
+ private:
+  void beep(const PendingBeep& p, const DecayVector& decay, Publisher& out) {
+    ++beeps_;
+    Beacon& b = beacons_[p.beacon];
+    // The latest sync that can precede this beep.
+    std::optional<double> sync;
+    for (auto it = b.syncs.rbegin(); it != b.syncs.rend(); ++it) {
+      const double tof = p.t_s - *it - b.delay_s;
+      if (tof >= -slack_s_ && tof <= max_range_ / c_) {
+        sync = *it;
+        break;
+      }
+    }
+    if (!sync) {
+      ++no_sync_;
+      return;
+    }
+    const double range = std::max(0.0, c_ * (p.t_s - *sync - b.delay_s));
+    const double pl = classifier_.ready() ? classifier_.p_los(decay) : 1.0;
+    const bool los = pl >= los_thr_;
+    if (!los) ++nlos_;
+    const double dz = b.anchor[2] - z_;
+    // An uncertain verdict carries the NLoS bias it may hide as variance: + (1 − P(LoS))·nlos_bias_m².
+    const double sd = std::sqrt(range_std_ * range_std_ + std::pow(dz * height_std_ / std::max(range, 1.0), 2) +
+                                (1.0 - pl) * nlos_bias_m_ * nlos_bias_m_);
+    bool gated = false;
+    if (!tracker_.initialised()) {
+      if (!los) return;
+      init_.push_back(InitRange{p.beacon, p.t_s, range});
+      while (!init_.empty() && p.t_s - init_.front().t_s > init_window_s_) init_.pop_front();
+      if (!try_init(p.t_s)) return;
+    } else {
+      tracker_.predict(p.t_s);
+      if (los) {
+        init_.push_back(InitRange{p.beacon, p.t_s, range});
+        while (!init_.empty() && p.t_s - init_.front().t_s > init_window_s_) init_.pop_front();
+        double nis = 0.0;
+        const bool ok = tracker_.update_range(b.anchor, z_, range, sd, nis);
+        recent_.push_back(!ok);
+        while (recent_.size() > static_cast<std::size_t>(2 * reinit_after_)) recent_.pop_front();
+        int recent_rejects = 0;
+        for (bool r : recent_) recent_rejects += r;
+        if (!ok) {
+          gated = true;
+          ++gated_;
+          // Lost: reinit_after gated-out LoS ranges among the last 2·reinit_after (a track in a mirror
+          // image keeps agreeing with the beacons of one line, so consecutive counts would miss it):
+          // a new fix from the recent LoS ranges of all beacons.
+          if (recent_rejects >= reinit_after_) {
+            last_xy_ = tracker_.position();
+            have_last_ = true;
+            tracker_ = Tracker(tcfg_);
+            recent_.clear();
+            if (!try_init(p.t_s)) return;
+          }
+        }
+      }
+    }
+    publish(p.t_s, los, gated, out);
+  }
+
+  bool try_init(double t) {
+    // Latest range per beacon.
+    std::map<std::size_t, InitRange> latest;
+    for (const InitRange& r : init_) latest[r.beacon] = r;
+    if (latest.size() < 3) return false;
+    std::vector<RangeObs> obs;
+    double span = 0.0;
+    for (const auto& [i, r] : latest) {
+      RangeObs o;
+      o.beacon_m = beacons_[i].anchor;
+      o.range_m = r.range_m;
+      // The walker moved between the beeps: their age widens them (walking speed ~1.4 m/s).
+      o.std_m = std::hypot(range_std_, 1.4 * (t - r.t_s));
+      obs.push_back(o);
+      span = std::max(span, t - r.t_s);
+    }
+    std::vector<Fix> fixes = trilaterate(obs, z_);
+    if (fixes.empty()) return false;
+    Fix best = fixes[0];
+    ambiguous_ = false;
+    if (fixes.size() > 1 && fixes[1].rms_residual_m < 2.0 * fixes[0].rms_residual_m + 0.1) {
+      ambiguous_ = true;
+      auto score = [&](const Fix& f) {
+        if (have_last_) return -std::hypot(f.xy_m[0] - last_xy_[0], f.xy_m[1] - last_xy_[1]);  // continuity
+        if (region_.size() == 4) {
+          const double dx = std::max({region_[0] - f.xy_m[0], 0.0, f.xy_m[0] - region_[2]});
+          const double dy = std::max({region_[1] - f.xy_m[1], 0.0, f.xy_m[1] - region_[3]});
+          return -std::hypot(dx, dy);
+        }
+        return std::min(f.xy_m[0], f.xy_m[1]);
+      };
+      if (score(fixes[1]) > score(fixes[0])) best = fixes[1];
+    }
+    // A poor fit (ranges inconsistent: an NLoS beep taken for LoS, or too much motion): wait.
+    if (best.rms_residual_m > 1.0) {
+      init_.pop_front();
+      return false;
+    }
+    std::array<double, 3> cov = best.cov;
+    const double motion2 = std::pow(0.7 * span, 2);  // half the walk since the oldest range
+    cov[0] += motion2;
+    cov[2] += motion2;
+    tracker_.init(t, best.xy_m, cov, 1.5);
+    ++inits_;
+    recent_.clear();
+    return true;
+  }
+
+  void publish(double t, bool los, bool gated, Publisher& out) {
+    Estimate e;
+    e.plugin = NameTag(instance_);
+    e.reference = DeviceId("");
+    e.frame = NameTag("world");
+    e.target = NameTag(device_);
+    e.t_s = t;
+    const auto xy = tracker_.position();
+    e.position_m = {xy[0], xy[1], z_};
+    e.dims = 2;
+    e.std_m = std::max(std_floor_, std_scale_ * tracker_.position_std());
+    double conf = std::exp(-e.std_m / 1.0);
+    if (ambiguous_) {
+      e.flags |= kEstimateAmbiguous;
+      conf *= 0.5;
+    }
+    if (gated) {
+      e.flags |= kEstimateInconsistent;
+      conf *= 0.5;
+    }
+    e.confidence = static_cast<float>(conf);
+    e.los = los ? 1 : 0;
+    out.publish(Event{e});
+    ++published_;
+  }
+
+  Logger* log_ = nullptr;
+  std::string instance_, device_, detector_;
+  double c_ = 343.2, z_ = 1.2, height_std_ = 0.25, range_std_ = 0.08, max_range_ = 40.0, slack_s_ = 0.002;
+  double nlos_bias_m_ = 0.0;
+  double los_thr_ = 0.5, init_window_s_ = 1.5, std_scale_ = 2.36, std_floor_ = 0.05;
+  int reinit_after_ = 3;
+  std::vector<double> region_;
+  TrackerConfig tcfg_;
+  std::vector<Beacon> beacons_;
+  std::deque<PendingBeep> pending_;
+  std::deque<InitRange> init_;
+  LosClassifier classifier_;
+  Tracker tracker_;
+  bool ambiguous_ = false;
+  bool have_last_ = false;
+  std::array<double, 2> last_xy_{};
+  std::deque<bool> recent_;  ///< last LoS ranges: gated out?
+  std::uint64_t beeps_ = 0, no_sync_ = 0, nlos_ = 0, gated_ = 0, inits_ = 0, published_ = 0, unknown_ = 0;
+};
+
+}  // namespace
+
+const ParamSchema& schema() {
+  static const ParamSchema s = {
+      string_param("device", std::string(""), "The walker's device (default: the replay device)."),
+      string_param("detector", std::string(""), "Instance name of the multitone detector to use (\"\" = any)."),
+      float_list_param("tones_hz",
+                       std::vector<double>{18000, 18250, 18500, 18750, 19000, 19250, 19500, 19750, 20000, 20250},
+                       1.0, 100000.0, "Hz", "The detector's tone grid: a beacon's identity = its tones as bits of this list.", 1, 16),
+      float_param("speed_of_sound_mps", 0.0, 0.0, 400.0, "m/s", "Speed of sound; 0 = from temperature_c."),
+      float_param("temperature_c", 20.0, -30.0, 50.0, "degC", "Air temperature (speed of sound when not given)."),
+      float_param("device_height_m", 1.2, 0.0, 3.0, "m", "Height of the phone's mic above the floor (z of the world frame)."),
+      float_param("height_std_m", 0.25, 0.0, 2.0, "m", "Uncertainty of that height (widens the ranges of high beacons)."),
+      float_param("range_std_m", 0.08, 0.001, 5.0, "m", "1-sigma range error of an LoS beep (sync jitter, first-path timing)."),
+      float_param("max_range_m", 40.0, 1.0, 500.0, "m", "Longest range (pairs a beep with a sync)."),
+      float_param("sync_slack_s", 0.002, 0.0, 0.1, "s", "A beep may come this much before sync + delay (radio latency, jitter)."),
+      string_param("los_model", std::string(""), "LoS/NLoS model file (locus train spyloc; a relative path is looked up from the working directory, then its parents); \"\" = every beep LoS, gate only."),
+      float_param("los_threshold", 0.5, 0.0, 1.0, "", "P(LoS) at or above which a beep's range is used."),
+      float_param("nlos_bias_m", 0.0, 0.0, 50.0, "m", "Typical excess of an NLoS range: a used range's variance grows by (1 - P(LoS))·this²."),
+      float_param("init_window_s", 1.5, 0.1, 30.0, "s", "LoS ranges of >= 3 beacons within this make the first fix."),
+      int_param("reinit_after", std::int64_t{3}, 1, 1000, "", "Gated-out LoS ranges among the last 2x this many after which a new fix replaces the track."),
+      float_param("accel_std_mps2", 0.6, 0.01, 50.0, "m/s^2", "White acceleration of the constant-velocity tracker."),
+      float_param("max_speed_mps", 2.5, 0.1, 20.0, "m/s", "Speed cap of the tracker."),
+      float_param("gate_sigma", 4.0, 1.0, 100.0, "", "Innovation gate (sigmas) of an LoS range shorter than predicted."),
+      float_param("gate_long_sigma", 2.5, 0.5, 100.0, "", "Innovation gate (sigmas) of a range longer than predicted (NLoS paths are longer)."),
+      float_list_param("region_m", std::vector<double>{}, -1e6, 1e6, "m",
+                       "[x_min, y_min, x_max, y_max] where the walker can be (resolves the mirror fix of beacons in a line); [] = unknown.", 0, 4),
+      float_param("std_scale", 2.36, 0.01, 100.0, "", "Scale of the filter's std: measured so that 68 % of errors fall within std_m (simulated seeds 101-120; spyloc-104: 71 %)."),
+      float_param("std_floor_m", 0.05, 0.0, 10.0, "m", "Smallest reported std_m."),
+  };
+  return s;
+}
+
+const locus_plugin_descriptor* descriptor() {
+  static const locus_plugin_descriptor d{
+      LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_LOCALIZER, "spyloc", "1",
+      "SpyLoc: beacon ranging from radio sync + multitone beep, LoS/NLoS by decay, tracking (paper 001)", 0,
+      [] { return &schema(); }, nullptr, [] { return static_cast<Localizer*>(new SpyLocLocalizer); }};
+  return &d;
+}
+
+}  // namespace locus::plugins::spyloc

@@ -1,0 +1,83 @@
+// SpyLoc EKF tracker. See tracker.hpp.
+#include "tracker.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+
+namespace locus::plugins::spyloc {
+
+void Tracker::init(double t_s, const std::array<double, 2>& xy, const std::array<double, 3>& cov, double speed_std_mps) {
+  t_ = t_s;
+  x_ << xy[0], xy[1], 0.0, 0.0;
+  P_.setZero();
+  P_(0, 0) = cov[0];
+  P_(0, 1) = P_(1, 0) = cov[1];
+  P_(1, 1) = cov[2];
+  P_(2, 2) = P_(3, 3) = speed_std_mps * speed_std_mps;
+  init_ = true;
+}
+
+void Tracker::predict(double t_s) {
+  const double dt = t_s - t_;
+  if (!(dt > 0.0)) return;
+  Eigen::Matrix4d F = Eigen::Matrix4d::Identity();
+  F(0, 2) = F(1, 3) = dt;
+  const double q = cfg_.accel_std_mps2 * cfg_.accel_std_mps2;
+  Eigen::Matrix4d Q = Eigen::Matrix4d::Zero();
+  for (int a = 0; a < 2; ++a) {
+    Q(a, a) = q * dt * dt * dt / 3.0;
+    Q(a, a + 2) = Q(a + 2, a) = q * dt * dt / 2.0;
+    Q(a + 2, a + 2) = q * dt;
+  }
+  x_ = F * x_;
+  P_ = F * P_ * F.transpose() + Q;
+  const double v = std::hypot(x_(2), x_(3));
+  if (v > cfg_.max_speed_mps) {
+    x_(2) *= cfg_.max_speed_mps / v;
+    x_(3) *= cfg_.max_speed_mps / v;
+  }
+  t_ = t_s;
+}
+
+bool Tracker::update_range(const std::array<double, 3>& b, double z_m, double range_m, double std_m, double& nis) {
+  const Eigen::Vector3d d(x_(0) - b[0], x_(1) - b[1], z_m - b[2]);
+  const double r = std::max(d.norm(), 1e-6);
+  Eigen::RowVector4d H = Eigen::RowVector4d::Zero();
+  H(0) = d.x() / r;
+  H(1) = d.y() / r;
+  const double S = (H * P_ * H.transpose())(0, 0) + std_m * std_m;
+  const double nu = range_m - r;
+  nis = nu * nu / S;
+  const double gate = nu > 0.0 ? cfg_.gate_long_sigma : cfg_.gate_sigma;
+  if (nis > gate * gate) return false;
+  const Eigen::Vector4d K = P_ * H.transpose() / S;
+  x_ += K * nu;
+  const Eigen::Matrix4d I_KH = Eigen::Matrix4d::Identity() - K * H;
+  P_ = I_KH * P_ * I_KH.transpose() + K * (std_m * std_m) * K.transpose();  // Joseph form
+  return true;
+}
+
+void Tracker::inflate(double pos_std_m, double vel_std_mps) {
+  P_(0, 0) += pos_std_m * pos_std_m;
+  P_(1, 1) += pos_std_m * pos_std_m;
+  P_(2, 2) += vel_std_mps * vel_std_mps;
+  P_(3, 3) += vel_std_mps * vel_std_mps;
+}
+
+void Tracker::update_speed(double speed_mps, double std_mps) {
+  const double v = std::hypot(x_(2), x_(3));
+  if (v < 0.05) return;  // direction unknown: a speed alone cannot be applied
+  Eigen::RowVector4d H = Eigen::RowVector4d::Zero();
+  H(2) = x_(2) / v;
+  H(3) = x_(3) / v;
+  const double S = (H * P_ * H.transpose())(0, 0) + std_mps * std_mps;
+  const Eigen::Vector4d K = P_ * H.transpose() / S;
+  x_ += K * (speed_mps - v);
+  P_ = (Eigen::Matrix4d::Identity() - K * H) * P_;
+  P_ = 0.5 * (P_ + P_.transpose());
+}
+
+double Tracker::position_std() const { return std::sqrt(std::max(0.0, P_(0, 0) + P_(1, 1))); }
+
+}  // namespace locus::plugins::spyloc

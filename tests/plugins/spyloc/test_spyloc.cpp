@@ -1,0 +1,285 @@
+// spyloc: trilateration with a known answer (and the mirror of collinear beacons), the EKF converging
+// on a walk from single ranges, the naive-Bayes GMM separating two known distributions and
+// round-tripping its model file, the plugin end to end on synthetic sync/beep events (NLoS beeps kept
+// out, lost syncs skipped), and clear errors on bad setups and model files.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "locus/events.hpp"
+#include "locus/fftw_planner.hpp"
+#include "spyloc/classifier.hpp"
+#include "spyloc/solver.hpp"
+#include "spyloc/spyloc.hpp"
+#include "spyloc/tracker.hpp"
+#include "support/test_host.hpp"
+
+namespace locus {
+namespace {
+
+using namespace plugins::spyloc;
+
+TEST(SpyLocSolver, TrilaterationKnownAnswer) {
+  const std::vector<std::array<double, 3>> b = {{1.5, 1.5, 2.5}, {22.5, 1.5, 2.5}, {12.0, 14.5, 2.5}};
+  const std::array<double, 2> truth = {7.3, 5.9};
+  std::vector<RangeObs> obs;
+  for (const auto& p : b) {
+    RangeObs o;
+    o.beacon_m = p;
+    o.range_m = std::sqrt(std::pow(truth[0] - p[0], 2) + std::pow(truth[1] - p[1], 2) + std::pow(1.2 - p[2], 2));
+    o.std_m = 0.05;
+    obs.push_back(o);
+  }
+  const auto fixes = trilaterate(obs, 1.2);
+  ASSERT_FALSE(fixes.empty());
+  EXPECT_NEAR(fixes[0].xy_m[0], truth[0], 1e-6);
+  EXPECT_NEAR(fixes[0].xy_m[1], truth[1], 1e-6);
+  EXPECT_LT(fixes[0].rms_residual_m, 1e-6);
+  // Collinear beacons (along y = 1.5): the mirror across their line fits as well, both are returned.
+  std::vector<RangeObs> line = obs;
+  line[2].beacon_m = {12.0, 1.5, 2.5};
+  line[2].range_m = std::sqrt(std::pow(truth[0] - 12.0, 2) + std::pow(truth[1] - 1.5, 2) + std::pow(1.2 - 2.5, 2));
+  const auto two = trilaterate(line, 1.2);
+  ASSERT_EQ(two.size(), 2u);
+  for (const Fix& f : two) {
+    EXPECT_NEAR(f.xy_m[0], truth[0], 1e-4);
+    EXPECT_NEAR(std::fabs(f.xy_m[1] - 1.5), truth[1] - 1.5, 1e-4);
+  }
+  EXPECT_TRUE(trilaterate({obs[0], obs[1]}, 1.2).empty());
+}
+
+TEST(SpyLocTracker, SingleRangesKeepAWalkOnTrack) {
+  const std::vector<std::array<double, 3>> b = {{1.5, 1.5, 2.5}, {22.5, 1.5, 2.5}, {12.0, 14.5, 2.5}};
+  Tracker t;
+  std::mt19937 rng(3);
+  std::normal_distribution<double> n(0.0, 0.05);
+  auto pos = [](double s) { return std::array<double, 2>{4.0 + 1.2 * s, 4.0 + 0.3 * s}; };
+  t.init(0.0, {4.5, 3.6}, {0.5, 0.0, 0.5}, 1.5);
+  double worst_late = 0.0;
+  for (int k = 1; k < 40; ++k) {
+    const double ts = 0.33 * k;
+    const auto p = pos(ts);
+    const auto& bk = b[static_cast<std::size_t>(k % 3)];
+    const double r = std::sqrt(std::pow(p[0] - bk[0], 2) + std::pow(p[1] - bk[1], 2) + std::pow(1.2 - bk[2], 2)) + n(rng);
+    t.predict(ts);
+    double nis = 0.0;
+    EXPECT_TRUE(t.update_range(bk, 1.2, r, 0.05, nis)) << k;
+    const auto e = t.position();
+    if (k > 15) worst_late = std::max(worst_late, std::hypot(e[0] - p[0], e[1] - p[1]));
+  }
+  EXPECT_LT(worst_late, 0.25);
+  // A range 5 m too long (a missed NLoS beep) is gated out, the state unchanged.
+  double nis = 0.0;
+  t.predict(0.33 * 40 + 0.01);
+  const auto before = t.position();
+  const auto p = pos(0.33 * 40 + 0.01);
+  const double r = std::sqrt(std::pow(p[0] - b[0][0], 2) + std::pow(p[1] - b[0][1], 2) + std::pow(1.2 - 2.5, 2));
+  EXPECT_FALSE(t.update_range(b[0], 1.2, r + 5.0, 0.05, nis));
+  EXPECT_GT(nis, 16.0);
+  EXPECT_EQ(t.position()[0], before[0]);
+  EXPECT_EQ(t.position()[1], before[1]);
+}
+
+TEST(SpyLocClassifier, SeparatesKnownClassesAndRoundTripsItsFile) {
+  std::mt19937 rng(5);
+  auto make = [&](double t10, double spread, std::size_t n, double nan_frac) {
+    std::vector<DecayVector> out;
+    std::normal_distribution<double> g(0.0, spread);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      DecayVector v;
+      for (std::size_t k = 0; k < kDecayFeatures; ++k) {
+        const double base = t10 * (static_cast<double>(k) + 0.5);
+        v[k] = u(rng) < nan_frac * static_cast<double>(k) / 5.0 ? NAN : static_cast<float>(base + g(rng));
+      }
+      out.push_back(v);
+    }
+    return out;
+  };
+  const auto los = make(0.004, 0.003, 200, 0.3), nlos = make(0.04, 0.01, 60, 0.8);
+  LosClassifier c;
+  c.train(los, nlos, 4);
+  const auto los_t = make(0.004, 0.003, 100, 0.3), nlos_t = make(0.04, 0.01, 100, 0.8);
+  int ok = 0;
+  for (const auto& v : los_t) ok += c.p_los(v) >= 0.5;
+  for (const auto& v : nlos_t) ok += c.p_los(v) < 0.5;
+  EXPECT_GE(ok, 196) << "held-out accuracy " << ok / 2.0 << " %";
+  const std::string path = (std::filesystem::temp_directory_path() / "locus_spyloc_model_test.yaml").string();
+  c.save(path, "test");
+  LosClassifier d;
+  d.load(path);
+  for (const auto& v : los_t) EXPECT_NEAR(d.p_los(v), c.p_los(v), 1e-6);
+  EXPECT_EQ(d.trained_los(), 200u);
+  // Bad files name the field.
+  {
+    std::ofstream f(path);
+    f << "format: locus-spyloc-los/1\ncensor_s: 0.2\nprior_los: 1.5\n";
+  }
+  try {
+    d.load(path);
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("prior_los"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove(path);
+  try {
+    d.load(path);
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot read"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(c.train(los, make(0.04, 0.01, 5, 0.0), 4), std::invalid_argument);
+}
+
+struct Pub : Publisher {
+  std::vector<Estimate> est;
+  void publish(const Event& e) override {
+    if (const auto* x = std::get_if<Estimate>(&e)) est.push_back(*x);
+  }
+};
+
+// Three beacons, a walker on a line; each beep: sync at t, beep at t + delay + r/c (+ 3 m for the
+// NLoS ones, which carry long decay features), some syncs lost.
+TEST(SpyLocPlugin, EndToEndOnSyntheticEvents) {
+  test::TestHost host;
+  FftwPlanner fftw({}, false);
+  std::vector<SceneSignal> scene;
+  const std::vector<std::array<double, 3>> b = {{1.5, 1.5, 2.5}, {22.5, 1.5, 2.5}, {12.0, 14.5, 2.5}};
+  const std::vector<std::vector<double>> tones = {{18000, 19000, 20000}, {18250, 18750, 20250}, {18500, 19250, 19500, 19750}};
+  for (int i = 0; i < 3; ++i) {
+    SceneSignal s;
+    s.id = "B" + std::to_string(i + 1);
+    s.signal.type = "multitone";
+    s.signal.tones_hz = tones[static_cast<std::size_t>(i)];
+    s.signal.duration_s = 0.06;
+    s.signal.sync_delay_s = 0.05;
+    s.has_anchor = true;
+    s.anchor_m = b[static_cast<std::size_t>(i)];
+    scene.push_back(s);
+  }
+  DeviceGeometry g;
+  g.scene_emits = scene;
+  // A classifier that knows short decays = LoS.
+  std::vector<DecayVector> los(40), nlos(40);
+  std::mt19937 rng(9);
+  std::normal_distribution<double> nz(0.0, 0.002);
+  for (auto& v : los)
+    for (std::size_t k = 0; k < kDecayFeatures; ++k) v[k] = static_cast<float>(0.003 * (k + 1) + nz(rng));
+  for (auto& v : nlos)
+    for (std::size_t k = 0; k < kDecayFeatures; ++k) v[k] = static_cast<float>(0.03 * (k + 1) + nz(rng));
+  LosClassifier c;
+  c.train(los, nlos, 2);
+  const std::string model = (std::filesystem::temp_directory_path() / "locus_spyloc_plugin_model.yaml").string();
+  c.save(model, "test");
+
+  std::unique_ptr<Localizer> loc(descriptor()->create_localizer());
+  Params p = Params::defaults(schema());
+  p.set("los_model", model);
+  p.set("speed_of_sound_mps", 343.0);
+  HostContext ctx{host.log, host.clock, fftw, host.link, "spyloc", "W", &g};
+  loc->configure(p, ctx);
+  Pub out;
+  auto mask = [&](int i) {
+    std::uint16_t m = 0;
+    for (double f : tones[static_cast<std::size_t>(i)]) m |= static_cast<std::uint16_t>(1u << static_cast<int>((f - 18000) / 250));
+    return m;
+  };
+  std::vector<double> errs;
+  for (int k = 0; k < 120; ++k) {
+    const double t = 0.5 + 0.333 * k;
+    const int i = k % 3;
+    const std::array<double, 2> w = {4.0 + 0.4 * t, 4.0 + 0.1 * t};
+    const double r = std::sqrt(std::pow(w[0] - b[i][0], 2) + std::pow(w[1] - b[i][1], 2) + std::pow(1.2 - b[i][2], 2));
+    const bool nlos_beep = k % 7 == 3, lost = k % 11 == 5;
+    if (!lost) {
+      RadioSync s;
+      s.device = DeviceId("W");
+      s.t_s = t;
+      s.source = NameTag("B" + std::to_string(i + 1));
+      loc->on_event(Event{s}, out);
+    }
+    AudioDetection d;
+    d.device = DeviceId("W");
+    d.sample_rate_hz = 44100.0;
+    d.frame = (t + 0.05 + (r + (nlos_beep ? 3.0 : 0.0)) / 343.0) * 44100.0;
+    d.template_index = mask(i);
+    loc->on_event(Event{d}, out);
+    DecayFeatures f;
+    f.device = d.device;
+    f.frame = d.frame;
+    for (std::size_t q = 0; q < kDecayFeatures; ++q) f.decay_s[q] = static_cast<float>((nlos_beep ? 0.03 : 0.003) * (q + 1));
+    const std::size_t before = out.est.size();
+    loc->on_event(Event{f}, out);
+    if (out.est.size() > before) {
+      const Estimate& e = out.est.back();
+      EXPECT_EQ(e.los, nlos_beep ? 0 : 1) << k;
+      const double tt = d.frame / 44100.0;
+      const std::array<double, 2> wt = {4.0 + 0.4 * (tt - 0.05 - r / 343.0), 4.0 + 0.1 * (tt - 0.05 - r / 343.0)};
+      if (k > 20) errs.push_back(std::hypot(e.position_m[0] - wt[0], e.position_m[1] - wt[1]));
+    }
+  }
+  loc->finish(out);
+  std::filesystem::remove(model);
+  ASSERT_GT(errs.size(), 60u);
+  std::sort(errs.begin(), errs.end());
+  const double p90 = errs[errs.size() * 9 / 10];
+  std::printf("synthetic walk: %zu estimates scored, p90 error %.3f m\n", errs.size(), p90);
+  EXPECT_LT(p90, 0.15);
+}
+
+TEST(SpyLocPlugin, BadSetupsAreClearErrors) {
+  test::TestHost host;
+  FftwPlanner fftw({}, false);
+  auto configure = [&](const DeviceGeometry* g, const Params& p) {
+    std::unique_ptr<Localizer> loc(descriptor()->create_localizer());
+    HostContext ctx{host.log, host.clock, fftw, host.link, "spyloc", "W", g};
+    loc->configure(p, ctx);
+  };
+  const Params p = Params::defaults(schema());
+  auto expect_error = [&](const DeviceGeometry* g, const Params& q, const std::string& needle) {
+    try {
+      configure(g, q);
+      ADD_FAILURE() << "no error, expected one mentioning " << needle;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  expect_error(nullptr, p, "no scene geometry");
+  std::vector<SceneSignal> scene(3);
+  for (int i = 0; i < 3; ++i) {
+    scene[static_cast<std::size_t>(i)].id = "B" + std::to_string(i);
+    scene[static_cast<std::size_t>(i)].signal.type = "multitone";
+    scene[static_cast<std::size_t>(i)].signal.tones_hz = {18000.0 + 250.0 * i};
+    scene[static_cast<std::size_t>(i)].has_anchor = true;
+  }
+  DeviceGeometry g;
+  g.scene_emits = scene;
+  expect_error(&g, p, "sync_delay_s");
+  for (auto& s : scene) s.signal.sync_delay_s = 0.05;
+  scene[2].signal.tones_hz = {17000.0};
+  g.scene_emits = scene;
+  expect_error(&g, p, "not in the tone grid");
+  scene[2].signal.tones_hz = {18000.0};
+  g.scene_emits = scene;
+  expect_error(&g, p, "same tone set");
+  scene[2].signal.tones_hz = {18750.0};
+  g.scene_emits = scene;
+  Params q = p;
+  q.set("los_model", std::string("/nonexistent/model.yaml"));
+  expect_error(&g, q, "los_model");
+  Params r = p;
+  r.set("region_m", std::vector<double>{0.0, 0.0, -1.0, 5.0});
+  expect_error(&g, r, "region_m");
+  scene.pop_back();
+  g.scene_emits = scene;
+  expect_error(&g, p, "at least 3");
+}
+
+}  // namespace
+}  // namespace locus
