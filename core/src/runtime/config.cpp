@@ -3,6 +3,7 @@
 #include "locus/config.hpp"
 #include "locus/ids.hpp"
 
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
