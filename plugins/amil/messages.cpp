@@ -106,7 +106,7 @@ Decoded decode(std::string_view prefix, std::string_view topic, std::string_view
   json j;
   try {
     j = json::parse(payload);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e400
     out.error = std::string("payload is not JSON: ") + e.what();
     return out;
   }

@@ -169,6 +169,11 @@ EstimatesFile parse_estimates(std::istream& in, const std::string& name) {
     } catch (const json::parse_error& e) {
       report(line_no, e.byte == 0 ? 1 : e.byte, "not valid JSON: " + json_detail(e));
       continue;
+    } catch (const json::exception& e) {  // out_of_range: a number beyond double (1e400)
+      const std::string w = e.what();
+      const auto bracket = w.find("] ");
+      report(line_no, 1, "not valid JSON: " + (bracket == std::string::npos ? w : w.substr(bracket + 2)));
+      continue;
     }
     if (!j.is_object()) {
       report(line_no, 1, std::string("expected a JSON object (one event per line), got ") + kind_of(j));

@@ -48,6 +48,9 @@ TEST(AmilMessages, MalformedMessagesAreNamed) {
   EXPECT_NE(err("other/arrivals/L1", ok).find("not under 'amil/'"), std::string::npos);
   EXPECT_NE(err("amil/arrivals", ok).find("expected amil/<hello|arrivals|done>/<listener>"), std::string::npos);
   EXPECT_NE(err("amil/beeps/L1", ok).find("unknown message kind 'beeps'"), std::string::npos);
+  // Found by tests/fuzz (link): a number beyond double threw out of decode and ended the process.
+  EXPECT_NE(err("amil/arrivals/L1", R"({"type":"amil_arrival","listener":"L1","t_s":2.791e30851247})").find("not JSON"),
+            std::string::npos);
   EXPECT_NE(err("amil/arrivals/L 1", ok).find("device id"), std::string::npos);
   EXPECT_NE(err("amil/arrivals/L1", "{oops").find("not JSON"), std::string::npos);
   EXPECT_NE(err("amil/arrivals/L1", "[1,2]").find("expected a JSON object"), std::string::npos);

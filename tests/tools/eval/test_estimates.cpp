@@ -75,6 +75,13 @@ TEST(EvalEstimates, NotJsonNamesLineAndColumn) {
                       "run.jsonl:2:32: not valid JSON: syntax error");
 }
 
+// Found by tests/fuzz (the same bug in amil::decode): nlohmann throws out_of_range, not parse_error,
+// for a number beyond double; it escaped and aborted `locus eval`.
+TEST(EvalEstimates, NumberBeyondDoubleIsAnErrorNotACrash) {
+  expect_single_error({R"({"type":"estimate","plugin":"a","t_s":2.791e30851247})"},
+                      "run.jsonl:1:1: not valid JSON: number overflow");
+}
+
 TEST(EvalEstimates, TruncatedLine) {
   expect_single_error({R"({"type":"estimate","plugin":"a")"}, "run.jsonl:1:");
   expect_single_error({R"({"type":"estimate","plugin":"a")"}, "not valid JSON");
