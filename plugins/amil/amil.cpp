@@ -33,6 +33,12 @@ std::string fmt(const char* f, double v) {
 
 class AmilLocalizer final : public Localizer {
  public:
+  // The player's handler captures `this`: once we are gone it must not run (found by ASan in
+  // AmilPlugin.Roles, where a later instance's hello reached a destroyed player).
+  ~AmilLocalizer() override {
+    if (link_ != nullptr && subscribed_) link_->unsubscribe(subscription_);
+  }
+
   void configure(const Params& params, HostContext& ctx) override {
     log_ = &ctx.log;
     link_ = &ctx.link;
@@ -133,7 +139,8 @@ class AmilLocalizer final : public Localizer {
     });
 
     if (role_ == Role::Player) {
-      link_->subscribe(amil::topic_filter(prefix_), [this](const LinkMessage& m) { on_link(m); });
+      subscription_ = link_->subscribe(amil::topic_filter(prefix_), [this](const LinkMessage& m) { on_link(m); });
+      subscribed_ = true;
       log_->info("amil: player" + (device_.empty() ? std::string(" (device from the first event)") : " " + device_) +
                  "; estimates " + (gesture_mode_ ? "after each gesture" : "at the end") + "; beep " + signal_to_json(beep_));
     } else {
@@ -503,6 +510,8 @@ class AmilLocalizer final : public Localizer {
 
   Logger* log_ = nullptr;
   Link* link_ = nullptr;
+  std::uint64_t subscription_ = 0;
+  bool subscribed_ = false;
   const Clock* clock_ = nullptr;
   Emitter* emitter_ = nullptr;
   std::string instance_, device_, prefix_, detector_, player_id_, track_csv_;
