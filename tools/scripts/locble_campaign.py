@@ -19,32 +19,11 @@ import argparse, json, math, os, subprocess, sys
 import yaml
 
 
-def parse_seeds(s):
-    out = []
-    for part in filter(None, s.split(',')):
-        if '-' in part:
-            a, b = part.split('-')
-            out += list(range(int(a), int(b) + 1))
-        else:
-            out.append(int(part))
-    return out
+from campaign_common import parse_seeds, pct, run as run_checked
 
 
 def run(cmd):
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    if r.returncode not in (0, 4):
-        sys.exit(f"locble_campaign: {' '.join(cmd)} failed ({r.returncode}):\n{r.stderr[-2000:]}")
-    return r
-
-
-def pct(v, q):
-    if not v:
-        return float('nan')
-    v = sorted(v)
-    k = (len(v) - 1) * q
-    f = math.floor(k)
-    c = min(f + 1, len(v) - 1)
-    return v[f] + (v[c] - v[f]) * (k - f)
+    return run_checked(cmd, "locble_campaign")
 
 
 def tag_addresses(scene):

@@ -20,15 +20,7 @@ import tempfile
 import numpy as np
 
 
-def seeds_of(text):
-    out = []
-    for part in text.split(','):
-        if '-' in part:
-            a, b = part.split('-')
-            out += list(range(int(a), int(b) + 1))
-        else:
-            out.append(int(part))
-    return out
+from campaign_common import parse_seeds as seeds_of
 
 
 def main():
