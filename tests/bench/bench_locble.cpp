@@ -44,6 +44,18 @@ Scenario make(int tags) {
   return s;
 }
 
+/// What an update does per tag before solving: place each reading on the dead-reckoned path, bin it.
+template <typename Readings>
+auto bins_of(const Scenario& s, const Readings& readings) {
+  std::vector<lb::Vec2> pos(readings.size());
+  std::vector<double> len(readings.size());
+  for (std::size_t i = 0; i < readings.size(); ++i) {
+    pos[i] = s.dr.position_at(readings[i].t_s);
+    len[i] = s.dr.path_length_at(readings[i].t_s);
+  }
+  return lb::make_bins(readings, pos, len, 0.5);
+}
+
 void BM_LocBleUpdate(benchmark::State& state) {
   const Scenario s = make(static_cast<int>(state.range(0)));
   lb::PosteriorOptions po;  // the shipped config: 20 m radius, 1 m grid
@@ -51,13 +63,7 @@ void BM_LocBleUpdate(benchmark::State& state) {
   lb::PositionPosterior post(po);
   for (auto _ : state) {
     for (const auto& readings : s.tags) {
-      std::vector<lb::Vec2> pos(readings.size());
-      std::vector<double> len(readings.size());
-      for (std::size_t i = 0; i < readings.size(); ++i) {
-        pos[i] = s.dr.position_at(readings[i].t_s);
-        len[i] = s.dr.path_length_at(readings[i].t_s);
-      }
-      const auto bins = lb::make_bins(readings, pos, len, 0.5);
+      const auto bins = bins_of(s, readings);
       benchmark::DoNotOptimize(post.solve(bins, lb::Vec2(0, 1)));
     }
   }
@@ -73,13 +79,7 @@ void BM_LocBleUpdatePlugin(benchmark::State& state) {
   lb::PositionPosterior post(po);
   for (auto _ : state) {
     for (const auto& readings : s.tags) {
-      std::vector<lb::Vec2> pos(readings.size());
-      std::vector<double> len(readings.size());
-      for (std::size_t i = 0; i < readings.size(); ++i) {
-        pos[i] = s.dr.position_at(readings[i].t_s);
-        len[i] = s.dr.path_length_at(readings[i].t_s);
-      }
-      const auto bins = lb::make_bins(readings, pos, len, 0.5);
+      const auto bins = bins_of(s, readings);
       benchmark::DoNotOptimize(post.solve_coarse_to_fine(bins, lb::Vec2(0, 1), true, 0.1));
     }
   }
