@@ -2,7 +2,14 @@
 
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <csignal>
 #include <cstdio>
+#include <cstring>
+#include <vector>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -81,6 +88,67 @@ TEST(JsonLinesWriter, UnopenablePathNamesIt) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent-dir/out.jsonl"), std::string::npos);
   }
+}
+
+
+struct Problems {
+  std::vector<std::pair<std::string, bool>> seen;
+  JsonLinesWriter::ProblemHandler handler() {
+    return [this](const std::string& m, bool error) { seen.emplace_back(m, error); };
+  }
+};
+
+TEST(JsonLinesWriter, FullDiskIsCountedAndReportedOnceNotThrown) {
+  Problems p;
+  JsonLinesWriter w("/dev/full", p.handler());  // every write: ENOSPC
+  for (int i = 0; i < 3; ++i) EXPECT_NO_THROW(w.write(Estimate{}));
+  EXPECT_EQ(w.lines(), 0u);
+  EXPECT_EQ(w.lines_failed(), 3u);
+  EXPECT_EQ(w.error(), std::strerror(ENOSPC));
+  ASSERT_EQ(p.seen.size(), 1u) << "one message per run of failures";
+  EXPECT_TRUE(p.seen[0].second);
+  EXPECT_NE(p.seen[0].first.find("output '/dev/full': write failed (" + std::string(std::strerror(ENOSPC)) + ")"),
+            std::string::npos)
+      << p.seen[0].first;
+}
+
+TEST(JsonLinesWriter, ConsumerThatGoesAwayAndComesBack) {
+  // locusd ignores SIGPIPE (tools/app/app.cpp); so does this test, so EPIPE comes back as an error.
+  const auto old = std::signal(SIGPIPE, SIG_IGN);
+  const auto fifo = std::filesystem::temp_directory_path() / ("locus-jsonl-fifo-" + std::to_string(::getpid()));
+  std::filesystem::remove(fifo);
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  int reader = ::open(fifo.c_str(), O_RDONLY | O_NONBLOCK);
+  ASSERT_GE(reader, 0);
+  Problems p;
+  {
+    JsonLinesWriter w(fifo.string(), p.handler());
+    w.write(Estimate{});
+    char buf[4096];
+    EXPECT_GT(::read(reader, buf, sizeof buf), 0);
+    ::close(reader);  // the consumer goes away
+    w.write(Estimate{});
+    w.write(RadioSync{});
+    EXPECT_EQ(w.lines(), 1u);
+    EXPECT_EQ(w.lines_failed(), 2u);
+    EXPECT_EQ(w.error(), std::strerror(EPIPE));
+    reader = ::open(fifo.c_str(), O_RDONLY | O_NONBLOCK);  // a consumer again
+    ASSERT_GE(reader, 0);
+    w.write(RadioSync{});
+    EXPECT_EQ(w.lines(), 2u);
+    const ssize_t n = ::read(reader, buf, sizeof buf);
+    ASSERT_GT(n, 0);
+    EXPECT_EQ(std::string(buf, static_cast<std::size_t>(n)).rfind("{\"type\":\"radio_sync\"", 0), 0u)
+        << "the next whole line, no fragment of a failed one";
+  }
+  ::close(reader);
+  std::filesystem::remove(fifo);
+  std::signal(SIGPIPE, old);
+  ASSERT_EQ(p.seen.size(), 2u);
+  EXPECT_TRUE(p.seen[0].second);
+  EXPECT_NE(p.seen[0].first.find("after 1 lines"), std::string::npos) << p.seen[0].first;
+  EXPECT_FALSE(p.seen[1].second);
+  EXPECT_NE(p.seen[1].first.find("writing again after 2 lines not written"), std::string::npos) << p.seen[1].first;
 }
 
 }  // namespace

@@ -120,6 +120,9 @@ int run_node(const RunOptions& opts) {
   sigaddset(&stop_signals, SIGINT);
   sigaddset(&stop_signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  // A daemon outlives its consumers: an output pipe whose reader went away is a counted, logged write
+  // error (JsonLinesWriter), not the end of the node (which also feeds MQTT and its localizers).
+  std::signal(SIGPIPE, SIG_IGN);
 
   Registry registry;
   register_builtins(registry);

@@ -122,7 +122,8 @@ nlohmann::ordered_json event_to_json(const Event& event) {
   return j;
 }
 
-JsonLinesWriter::JsonLinesWriter(const std::string& path) : path_(path) {
+JsonLinesWriter::JsonLinesWriter(const std::string& path, ProblemHandler on_problem)
+    : path_(path), on_problem_(std::move(on_problem)) {
   if (path == "-") {
     file_ = stdout;
   } else {
@@ -141,9 +142,28 @@ void JsonLinesWriter::write(const Event& event) { write(event_to_json(event)); }
 
 void JsonLinesWriter::write(const nlohmann::ordered_json& object) {
   const std::string line = object.dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace) + "\n";
-  std::fwrite(line.data(), 1, line.size(), file_);
-  std::fflush(file_);
-  ++lines_;
+  errno = 0;
+  const bool ok = std::fwrite(line.data(), 1, line.size(), file_) == line.size() && std::fflush(file_) == 0;
+  if (ok) {
+    ++lines_;
+    if (failing_run_ > 0 && on_problem_) {
+      on_problem_("output '" + path_ + "': writing again after " + std::to_string(failing_run_) + " lines not written",
+                  false);
+    }
+    failing_run_ = 0;
+    return;
+  }
+  const int err = errno;
+  std::clearerr(file_);
+  ++lines_failed_;
+  if (failing_run_++ == 0) {
+    error_ = err != 0 ? std::strerror(err) : "write error";
+    if (on_problem_) {
+      on_problem_("output '" + path_ + "': write failed (" + error_ + ") after " + std::to_string(lines_) +
+                      " lines; the node goes on, lines that cannot be written are counted",
+                  true);
+    }
+  }
 }
 
 void JsonLinesWriter::flush() {

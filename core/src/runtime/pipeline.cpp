@@ -261,7 +261,14 @@ void Pipeline::open_localizers(const HostServices& host) {
 
 void Pipeline::open_outputs() {
   if (options_.write_output) {
-    writer_ = std::make_unique<JsonLinesWriter>(config_.output.path);
+    writer_ = std::make_unique<JsonLinesWriter>(config_.output.path, [](const std::string& message, bool error) {
+      auto log = host_logger();
+      if (error) {
+        log->error("{}", message);
+      } else {
+        log->info("{}", message);
+      }
+    });
     for (EventType t : config_.output.events) {
       JsonLinesWriter* w = writer_.get();
       bus_.subscribe(t, [w](const Event& e) { w->write(e); });
@@ -386,7 +393,13 @@ void Pipeline::flush() {
                              : std::string(),
               s.source_error.empty() ? "" : ", source error: " + s.source_error);
   }
-  if (writer_) writer_->flush();
+  if (writer_) {
+    writer_->flush();
+    if (writer_->lines_failed() > 0) {
+      host_logger()->error("output '{}': {} lines written, {} not written (last error: {})", writer_->path(),
+                           writer_->lines(), writer_->lines_failed(), writer_->error());
+    }
+  }
   for (auto& o : outputs_) o->flush();
 }
 

@@ -200,6 +200,13 @@ class Jackd {
     return "jackd did not answer within 15 s: " + log();
   }
   std::string log() const { return proc_ ? proc_->out() + proc_->err() : std::string(); }
+  /// SIGKILL, as a crashed server, and what it leaves in /dev/shm removed; start() brings it back.
+  void kill_hard() {
+    if (proc_) proc_->stop(SIGKILL, 10s);
+    proc_.reset();
+    remove_shm();
+  }
+  bool running() const { return proc_ && proc_->running(); }
 
  private:
   void remove_shm() {  // what a killed jackd leaves behind, for this server name only
