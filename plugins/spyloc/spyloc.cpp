@@ -2,6 +2,7 @@
 // spyloc.hpp; classifier.cpp, solver.cpp and tracker.cpp hold the maths.
 #include "spyloc.hpp"
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include "classifier.hpp"
+#include "locus/dsp/dead_reckoning.hpp"
 #include "solver.hpp"
 #include "tracker.hpp"
 
@@ -50,6 +52,16 @@ struct PendingBeep {
   std::size_t beacon = 0;
 };
 
+/// A range ready for the tracker (paired, classified), waiting in dead-reckoning mode until the
+/// walker's steps up to its time are known.
+struct RangeMeas {
+  double t_s = 0.0;
+  std::size_t beacon = 0;
+  double range_m = 0.0;
+  double std_m = 0.0;
+  bool los = true;
+};
+
 struct InitRange {
   std::size_t beacon = 0;
   double t_s = 0.0;
@@ -82,6 +94,15 @@ class SpyLocLocalizer final : public Localizer {
     tcfg_.max_speed_mps = params.get_float("max_speed_mps");
     tcfg_.gate_sigma = params.get_float("gate_sigma");
     tcfg_.gate_long_sigma = params.get_float("gate_long_sigma");
+    dead_reckoning_ = params.get_bool("dead_reckoning");
+    align_spread_m_ = params.get_float("align_spread_m");
+    align_window_s_ = params.get_float("align_window_s");
+    hold_s_ = params.get_float("step_wait_s");
+    pdr_std_scale_ = params.get_float("pdr_std_scale");
+    pcfg_.stride_std_frac = params.get_float("stride_std");
+    pcfg_.heading_std_rad = params.get_float("step_heading_std_rad");
+    pcfg_.gate_sigma = tcfg_.gate_sigma;
+    pcfg_.gate_long_sigma = tcfg_.gate_long_sigma;
     region_ = params.get_floats("region_m");
     if (!region_.empty() && (region_.size() != 4 || !(region_[2] > region_[0]) || !(region_[3] > region_[1])))
       throw std::runtime_error("spyloc: param 'region_m': expected [x_min, y_min, x_max, y_max] with max > min, or []");
@@ -128,6 +149,9 @@ class SpyLocLocalizer final : public Localizer {
 
   /// [main]
   std::vector<EventType> subscriptions() const override {
+    if (dead_reckoning_)
+      return {EventType::RadioSync, EventType::AudioDetection, EventType::DecayFeatures, EventType::Step,
+              EventType::Attitude};
     return {EventType::RadioSync, EventType::AudioDetection, EventType::DecayFeatures};
   }
 
@@ -150,6 +174,16 @@ class SpyLocLocalizer final : public Localizer {
           return;
         }
       ++unknown_;
+    } else if (const auto* a = std::get_if<Attitude>(&event)) {
+      if (a->device.view() != device_) return;
+      dr_.add_heading(a->t_s, a->heading_rad);
+    } else if (const auto* st = std::get_if<Step>(&event)) {
+      if (st->device.view() != device_) return;
+      if (dr_.add_step(st->t_s, st->stride_m, st->frequency_hz)) {
+        ++steps_;
+        latest_t_ = std::max(latest_t_, st->t_s);
+        flush_ranges(out, false);
+      }
     } else if (const auto* f = std::get_if<DecayFeatures>(&event)) {
       if (f->device.view() != device_) return;
       if (!detector_.empty() && f->detector.view() != detector_) return;
@@ -166,11 +200,22 @@ class SpyLocLocalizer final : public Localizer {
   }
 
   /// [main]
-  void finish(Publisher&) override {
-    if (log_)
+  void finish(Publisher& out) override {
+    flush_ranges(out, true);
+    if (log_) {
       log_->info("spyloc " + instance_ + ": " + std::to_string(beeps_) + " beeps, " + std::to_string(no_sync_) +
                  " without a sync, " + std::to_string(nlos_) + " NLoS, " + std::to_string(gated_) + " LoS ranges gated out, " +
                  std::to_string(inits_) + " fixes, " + std::to_string(published_) + " estimates");
+      if (pdr_.initialised()) {
+        log_->info("spyloc " + instance_ + ": dead reckoning from t = " + std::to_string(pdr_since_s_) + " s (" +
+                   std::to_string(steps_) + " steps): heading offset " + std::to_string(pdr_.psi_rad() * 180.0 / M_PI) +
+                   " deg +- " + std::to_string(pdr_.psi_std_rad() * 180.0 / M_PI) + ", stride scale " +
+                   std::to_string(pdr_.stride_scale()));
+      } else if (dead_reckoning_) {
+        log_->info("spyloc " + instance_ + ": no dead reckoning (" + std::to_string(steps_) +
+                   " steps; the steps could not be aligned with the track)");
+      }
+    }
   }
 
  private:
@@ -198,6 +243,12 @@ class SpyLocLocalizer final : public Localizer {
     // An uncertain verdict carries the NLoS bias it may hide as variance: + (1 − P(LoS))·nlos_bias_m².
     const double sd = std::sqrt(range_std_ * range_std_ + std::pow(dz * height_std_ / std::max(range, 1.0), 2) +
                                 (1.0 - pl) * nlos_bias_m_ * nlos_bias_m_);
+    if (pdr_.initialised()) {
+      queued_.push_back(RangeMeas{p.t_s, p.beacon, range, sd, los});
+      latest_t_ = std::max(latest_t_, p.t_s);
+      flush_ranges(out, false);
+      return;
+    }
     bool gated = false;
     if (!tracker_.initialised()) {
       if (!los) return;
@@ -211,6 +262,7 @@ class SpyLocLocalizer final : public Localizer {
         while (!init_.empty() && p.t_s - init_.front().t_s > init_window_s_) init_.pop_front();
         double nis = 0.0;
         const bool ok = tracker_.update_range(b.anchor, z_, range, sd, nis);
+        if (ok) learn_alignment(p.t_s);
         recent_.push_back(!ok);
         while (recent_.size() > static_cast<std::size_t>(2 * reinit_after_)) recent_.pop_front();
         int recent_rejects = 0;
@@ -232,6 +284,97 @@ class SpyLocLocalizer final : public Localizer {
       }
     }
     publish(p.t_s, los, gated, out);
+  }
+
+  /// CV mode: pairs of (dead-reckoned, tracked) positions; once the dead-reckoned path spreads over
+  /// align_spread_m, the rotation and stride scale that map it onto the track start the PDR tracker.
+  void learn_alignment(double t) {
+    if (!dead_reckoning_ || dr_.steps() < 2) return;
+    align_t_.push_back(t);
+    const Eigen::Vector2d d = dr_.position_at(t);
+    align_dr_.push_back({d.x(), d.y()});
+    align_track_.push_back(tracker_.position());
+    while (!align_t_.empty() && t - align_t_.front() > align_window_s_) {
+      align_t_.pop_front();
+      align_dr_.pop_front();
+      align_track_.pop_front();
+    }
+    if (align_t_.size() < 6) return;
+    const std::vector<std::array<double, 2>> a(align_dr_.begin(), align_dr_.end()), b(align_track_.begin(), align_track_.end());
+    const Alignment al = align_paths(a, b);
+    if (al.spread_m < align_spread_m_ || al.k < 0.7 || al.k > 1.4 || al.rms_m > 0.25 * al.spread_m) return;
+    // Start where the fitted path puts the walker now: the mean of the window's tracked positions
+    // plus the dead-reckoned offset from their mean, rotated and scaled (an average over the window,
+    // steadier than the last constant-velocity estimate).
+    Eigen::Vector2d mdr = Eigen::Vector2d::Zero(), mtr = Eigen::Vector2d::Zero();
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      mdr += Eigen::Vector2d(a[i][0], a[i][1]);
+      mtr += Eigen::Vector2d(b[i][0], b[i][1]);
+    }
+    mdr /= static_cast<double>(a.size());
+    mtr /= static_cast<double>(b.size());
+    const double c = std::cos(al.psi_rad), sn = std::sin(al.psi_rad);
+    const Eigen::Vector2d off = d - mdr;
+    const std::array<double, 2> xy{mtr.x() + al.k * (c * off.x() - sn * off.y()), mtr.y() + al.k * (sn * off.x() + c * off.y())};
+    const double var = 0.5 * al.rms_m * al.rms_m + 0.05 * 0.05;
+    PdrTracker pdr(pcfg_);
+    const double psi_std = std::clamp(al.rms_m / al.spread_m, 0.03, 0.3);
+    pdr.init(xy, {var, 0.0, var}, al.psi_rad, psi_std, al.k, 0.1);
+    pdr_ = pdr;
+    applied_dr_ = d;
+    pdr_since_s_ = t;
+  }
+
+  /// PDR mode: the queued ranges whose time the steps already cover (or older than step_wait_s:
+  /// the walker stands), in time order; all of them at the end.
+  void flush_ranges(Publisher& out, bool all) {
+    if (!pdr_.initialised() || queued_.empty()) return;
+    std::sort(queued_.begin(), queued_.end(), [](const RangeMeas& x, const RangeMeas& y) { return x.t_s < y.t_s; });
+    const double covered = dr_.steps() > 0 ? dr_.step_end_s(dr_.steps() - 1) : -1e300;
+    while (!queued_.empty()) {
+      const RangeMeas m = queued_.front();
+      if (!all && m.t_s > covered && m.t_s > latest_t_ - hold_s_) break;
+      queued_.pop_front();
+      pdr_range(m, out);
+    }
+  }
+
+  void pdr_range(const RangeMeas& m, Publisher& out) {
+    const Eigen::Vector2d d = dr_.position_at(m.t_s);
+    pdr_.step({d.x() - applied_dr_.x(), d.y() - applied_dr_.y()});
+    applied_dr_ = d;
+    bool gated = false;
+    if (m.los) {
+      const auto& bp = beacons_[m.beacon].anchor;
+      const auto xy = pdr_.position();
+      const double predicted = std::sqrt(std::pow(xy[0] - bp[0], 2) + std::pow(xy[1] - bp[1], 2) + std::pow(z_ - bp[2], 2));
+      double nis = 0.0;
+      const bool ok = pdr_.update_range(bp, z_, m.range_m, m.std_m, nis);
+      // A range longer than the dead-reckoned track allows is what an NLoS beep the classifier missed
+      // looks like: gated out, kept out of the next fix, and no sign that the track is lost. Only
+      // ranges that are too SHORT (no path is shorter than the direct one) say the track is wrong.
+      const bool too_long = !ok && m.range_m > predicted;
+      if (!too_long) {
+        init_.push_back(InitRange{m.beacon, m.t_s, m.range_m});
+        while (!init_.empty() && m.t_s - init_.front().t_s > init_window_s_) init_.pop_front();
+      }
+      recent_.push_back(!ok && !too_long);
+      while (recent_.size() > static_cast<std::size_t>(2 * reinit_after_)) recent_.pop_front();
+      int recent_rejects = 0;
+      for (bool r : recent_) recent_rejects += r;
+      if (!ok) {
+        gated = true;
+        ++gated_;
+        if (recent_rejects >= reinit_after_) {  // lost: a new fix for the position, ψ and k kept
+          last_xy_ = pdr_.position();
+          have_last_ = true;
+          tracker_ = Tracker(tcfg_);
+          recent_.clear();
+          if (try_init(m.t_s)) pdr_.reset_position(tracker_.position(), tracker_.position_cov(), 0.1);
+        }
+      }
+    }
+    publish(m.t_s, m.los, gated, out);
   }
 
   bool try_init(double t) {
@@ -289,10 +432,11 @@ class SpyLocLocalizer final : public Localizer {
     e.frame = NameTag("world");
     e.target = NameTag(device_);
     e.t_s = t;
-    const auto xy = tracker_.position();
+    const bool pdr = pdr_.initialised();
+    const auto xy = pdr ? pdr_.position() : tracker_.position();
     e.position_m = {xy[0], xy[1], z_};
     e.dims = 2;
-    e.std_m = std::max(std_floor_, std_scale_ * tracker_.position_std());
+    e.std_m = std::max(std_floor_, pdr ? pdr_std_scale_ * pdr_.position_std() : std_scale_ * tracker_.position_std());
     double conf = std::exp(-e.std_m / 1.0);
     if (ambiguous_) {
       e.flags |= kEstimateAmbiguous;
@@ -316,6 +460,17 @@ class SpyLocLocalizer final : public Localizer {
   int reinit_after_ = 3;
   std::vector<double> region_;
   TrackerConfig tcfg_;
+  PdrConfig pcfg_;
+  bool dead_reckoning_ = true;
+  double align_spread_m_ = 1.5, align_window_s_ = 12.0, hold_s_ = 1.5, pdr_std_scale_ = 1.0, pdr_since_s_ = 0.0;
+  double latest_t_ = -1e300;
+  dsp::DeadReckoning dr_;
+  PdrTracker pdr_;
+  Eigen::Vector2d applied_dr_ = Eigen::Vector2d::Zero();
+  std::deque<double> align_t_;
+  std::deque<std::array<double, 2>> align_dr_, align_track_;
+  std::deque<RangeMeas> queued_;
+  std::uint64_t steps_ = 0;
   std::vector<Beacon> beacons_;
   std::deque<PendingBeep> pending_;
   std::deque<InitRange> init_;
@@ -357,6 +512,17 @@ const ParamSchema& schema() {
                        "[x_min, y_min, x_max, y_max] where the walker can be (resolves the mirror fix of beacons in a line); [] = unknown.", 0, 4),
       float_param("std_scale", 2.36, 0.01, 100.0, "", "Scale of the filter's std: measured so that 68 % of errors fall within std_m (simulated seeds 101-120; spyloc-104: 71 %)."),
       float_param("std_floor_m", 0.05, 0.0, 10.0, "m", "Smallest reported std_m."),
+      bool_param("dead_reckoning", true,
+                 "Carry the track with the walker's steps (`step` events) and heading (`attitude` events) once they can be "
+                 "aligned with the ranged track (the paper's PDR); without step events the constant-velocity tracker stays."),
+      float_param("align_spread_m", 1.5, 0.2, 100.0, "m",
+                  "Dead reckoning starts when the dead-reckoned path of the last align_window_s spreads this far (rms about its mean)."),
+      float_param("align_window_s", 12.0, 1.0, 600.0, "s", "Window of (dead-reckoned, tracked) positions the alignment is fitted on."),
+      float_param("step_wait_s", 1.5, 0.0, 10.0, "s",
+                  "Dead reckoning: a range waits until the steps up to its time are known, at most this long (a standing walker makes none)."),
+      float_param("stride_std", 0.08, 0.0, 1.0, "", "Dead reckoning: per-step stride error (fraction of the stride)."),
+      float_param("step_heading_std_rad", 0.06, 0.0, 1.0, "rad", "Dead reckoning: per-step direction error."),
+      float_param("pdr_std_scale", 1.0, 0.01, 100.0, "", "Scale of the dead-reckoning filter's std (std_m = this x its position std)."),
   };
   return s;
 }
