@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <deque>
 #include <filesystem>
@@ -95,8 +96,8 @@ class SpyLocLocalizer final : public Localizer {
     tcfg_.gate_sigma = params.get_float("gate_sigma");
     tcfg_.gate_long_sigma = params.get_float("gate_long_sigma");
     dead_reckoning_ = params.get_bool("dead_reckoning");
-    align_spread_m_ = params.get_float("align_spread_m");
-    align_window_s_ = params.get_float("align_window_s");
+    n_hyp_ = static_cast<int>(params.get_int("heading_hypotheses"));
+    prune_loglik_ = params.get_float("prune_loglik");
     hold_s_ = params.get_float("step_wait_s");
     pdr_std_scale_ = params.get_float("pdr_std_scale");
     pcfg_.stride_std_frac = params.get_float("stride_std");
@@ -206,14 +207,15 @@ class SpyLocLocalizer final : public Localizer {
       log_->info("spyloc " + instance_ + ": " + std::to_string(beeps_) + " beeps, " + std::to_string(no_sync_) +
                  " without a sync, " + std::to_string(nlos_) + " NLoS, " + std::to_string(gated_) + " LoS ranges gated out, " +
                  std::to_string(inits_) + " fixes, " + std::to_string(published_) + " estimates");
-      if (pdr_.initialised()) {
+      if (pdr_active()) {
+        const PdrTracker& t = hyps_[best_hyp()].tracker;
         log_->info("spyloc " + instance_ + ": dead reckoning from t = " + std::to_string(pdr_since_s_) + " s (" +
-                   std::to_string(steps_) + " steps): heading offset " + std::to_string(pdr_.psi_rad() * 180.0 / M_PI) +
-                   " deg +- " + std::to_string(pdr_.psi_std_rad() * 180.0 / M_PI) + ", stride scale " +
-                   std::to_string(pdr_.stride_scale()));
+                   std::to_string(steps_) + " steps, " + std::to_string(hyps_.size()) + " of " + std::to_string(n_hyp_) +
+                   " heading hypotheses left): heading offset " + std::to_string(t.psi_rad() * 180.0 / M_PI) + " deg +- " +
+                   std::to_string(t.psi_std_rad() * 180.0 / M_PI) + ", stride scale " + std::to_string(t.stride_scale()));
       } else if (dead_reckoning_) {
         log_->info("spyloc " + instance_ + ": no dead reckoning (" + std::to_string(steps_) +
-                   " steps; the steps could not be aligned with the track)");
+                   " steps: no fix after the first step)");
       }
     }
   }
@@ -243,7 +245,11 @@ class SpyLocLocalizer final : public Localizer {
     // An uncertain verdict carries the NLoS bias it may hide as variance: + (1 − P(LoS))·nlos_bias_m².
     const double sd = std::sqrt(range_std_ * range_std_ + std::pow(dz * height_std_ / std::max(range, 1.0), 2) +
                                 (1.0 - pl) * nlos_bias_m_ * nlos_bias_m_);
-    if (pdr_.initialised()) {
+    if (dead_reckoning_ && !pdr_active() && dr_.steps() > 0 && tracker_.initialised()) {
+      tracker_.predict(p.t_s);
+      start_pdr(p.t_s, tracker_.position(), tracker_.position_cov());
+    }
+    if (pdr_active()) {
       queued_.push_back(RangeMeas{p.t_s, p.beacon, range, sd, los});
       latest_t_ = std::max(latest_t_, p.t_s);
       flush_ranges(out, false);
@@ -262,7 +268,6 @@ class SpyLocLocalizer final : public Localizer {
         while (!init_.empty() && p.t_s - init_.front().t_s > init_window_s_) init_.pop_front();
         double nis = 0.0;
         const bool ok = tracker_.update_range(b.anchor, z_, range, sd, nis);
-        if (ok) learn_alignment(p.t_s);
         recent_.push_back(!ok);
         while (recent_.size() > static_cast<std::size_t>(2 * reinit_after_)) recent_.pop_front();
         int recent_rejects = 0;
@@ -286,49 +291,33 @@ class SpyLocLocalizer final : public Localizer {
     publish(p.t_s, los, gated, out);
   }
 
-  /// CV mode: pairs of (dead-reckoned, tracked) positions; once the dead-reckoned path spreads over
-  /// align_spread_m, the rotation and stride scale that map it onto the track start the PDR tracker.
-  void learn_alignment(double t) {
-    if (!dead_reckoning_ || dr_.steps() < 2) return;
-    align_t_.push_back(t);
+  /// Dead reckoning starts at the track's current fix with one hypothesis per heading offset ψ
+  /// (the rotation from the phone's relative heading to the world is unknown: n_hyp evenly spaced,
+  /// each ± half the spacing) and stride scale 1 ± 0.15; the ranges weigh them (a Gaussian sum:
+  /// each hypothesis an EKF, its weight the likelihood of the ranges it saw).
+  void start_pdr(double t, const std::array<double, 2>& xy, const std::array<double, 3>& cov) {
+    hyps_.clear();
+    for (int i = 0; i < n_hyp_; ++i) {
+      PdrTracker p(pcfg_);
+      p.init(xy, cov, -M_PI + 2.0 * M_PI * (i + 0.5) / n_hyp_, M_PI / n_hyp_, 1.0, 0.15);
+      hyps_.push_back(Hypothesis{p, 0.0});
+    }
     const Eigen::Vector2d d = dr_.position_at(t);
-    align_dr_.push_back({d.x(), d.y()});
-    align_track_.push_back(tracker_.position());
-    while (!align_t_.empty() && t - align_t_.front() > align_window_s_) {
-      align_t_.pop_front();
-      align_dr_.pop_front();
-      align_track_.pop_front();
-    }
-    if (align_t_.size() < 6) return;
-    const std::vector<std::array<double, 2>> a(align_dr_.begin(), align_dr_.end()), b(align_track_.begin(), align_track_.end());
-    const Alignment al = align_paths(a, b);
-    if (al.spread_m < align_spread_m_ || al.k < 0.7 || al.k > 1.4 || al.rms_m > 0.25 * al.spread_m) return;
-    // Start where the fitted path puts the walker now: the mean of the window's tracked positions
-    // plus the dead-reckoned offset from their mean, rotated and scaled (an average over the window,
-    // steadier than the last constant-velocity estimate).
-    Eigen::Vector2d mdr = Eigen::Vector2d::Zero(), mtr = Eigen::Vector2d::Zero();
-    for (std::size_t i = 0; i < a.size(); ++i) {
-      mdr += Eigen::Vector2d(a[i][0], a[i][1]);
-      mtr += Eigen::Vector2d(b[i][0], b[i][1]);
-    }
-    mdr /= static_cast<double>(a.size());
-    mtr /= static_cast<double>(b.size());
-    const double c = std::cos(al.psi_rad), sn = std::sin(al.psi_rad);
-    const Eigen::Vector2d off = d - mdr;
-    const std::array<double, 2> xy{mtr.x() + al.k * (c * off.x() - sn * off.y()), mtr.y() + al.k * (sn * off.x() + c * off.y())};
-    const double var = 0.5 * al.rms_m * al.rms_m + 0.05 * 0.05;
-    PdrTracker pdr(pcfg_);
-    const double psi_std = std::clamp(al.rms_m / al.spread_m, 0.03, 0.3);
-    pdr.init(xy, {var, 0.0, var}, al.psi_rad, psi_std, al.k, 0.1);
-    pdr_ = pdr;
     applied_dr_ = d;
     pdr_since_s_ = t;
+  }
+  bool pdr_active() const noexcept { return !hyps_.empty(); }
+  std::size_t best_hyp() const {
+    std::size_t b = 0;
+    for (std::size_t i = 1; i < hyps_.size(); ++i)
+      if (hyps_[i].loglik > hyps_[b].loglik) b = i;
+    return b;
   }
 
   /// PDR mode: the queued ranges whose time the steps already cover (or older than step_wait_s:
   /// the walker stands), in time order; all of them at the end.
   void flush_ranges(Publisher& out, bool all) {
-    if (!pdr_.initialised() || queued_.empty()) return;
+    if (!pdr_active() || queued_.empty()) return;
     std::sort(queued_.begin(), queued_.end(), [](const RangeMeas& x, const RangeMeas& y) { return x.t_s < y.t_s; });
     const double covered = dr_.steps() > 0 ? dr_.step_end_s(dr_.steps() - 1) : -1e300;
     while (!queued_.empty()) {
@@ -341,36 +330,64 @@ class SpyLocLocalizer final : public Localizer {
 
   void pdr_range(const RangeMeas& m, Publisher& out) {
     const Eigen::Vector2d d = dr_.position_at(m.t_s);
-    pdr_.step({d.x() - applied_dr_.x(), d.y() - applied_dr_.y()});
+    for (Hypothesis& h : hyps_) h.tracker.step({d.x() - applied_dr_.x(), d.y() - applied_dr_.y()});
     applied_dr_ = d;
     bool gated = false;
     if (m.los) {
       const auto& bp = beacons_[m.beacon].anchor;
-      const auto xy = pdr_.position();
-      const double predicted = std::sqrt(std::pow(xy[0] - bp[0], 2) + std::pow(xy[1] - bp[1], 2) + std::pow(z_ - bp[2], 2));
-      double nis = 0.0;
-      const bool ok = pdr_.update_range(bp, z_, m.range_m, m.std_m, nis);
-      // A range longer than the dead-reckoned track allows is what an NLoS beep the classifier missed
-      // looks like: gated out, kept out of the next fix, and no sign that the track is lost. Only
-      // ranges that are too SHORT (no path is shorter than the direct one) say the track is wrong.
-      const bool too_long = !ok && m.range_m > predicted;
-      if (!too_long) {
+      std::vector<char> ok(hyps_.size()), too_long(hyps_.size());
+      for (std::size_t i = 0; i < hyps_.size(); ++i) {
+        PdrTracker& t = hyps_[i].tracker;
+        const auto xy = t.position();
+        const double predicted = std::sqrt(std::pow(xy[0] - bp[0], 2) + std::pow(xy[1] - bp[1], 2) + std::pow(z_ - bp[2], 2));
+        double nis = 0.0;
+        ok[i] = t.update_range(bp, z_, m.range_m, m.std_m, nis);
+        too_long[i] = !ok[i] && m.range_m > predicted;
+        // The range's likelihood under this hypothesis; a gated-out one costs what the gate allows
+        // (an NLoS beep must not decide between hypotheses on its own).
+        const double g = too_long[i] ? pcfg_.gate_long_sigma : pcfg_.gate_sigma;
+        hyps_[i].loglik += -0.5 * (ok[i] ? nis : g * g) - 0.5 * std::log(t.last_innovation_var());
+      }
+      const std::size_t b = best_hyp();
+      // Hypotheses far less likely than the best are dropped (never the best).
+      std::vector<Hypothesis> kept;
+      for (const Hypothesis& h : hyps_)
+        if (h.loglik >= hyps_[b].loglik - prune_loglik_) kept.push_back(h);
+      const bool b_ok = ok[b], b_long = too_long[b];
+      hyps_ = std::move(kept);
+      // A range longer than the best track allows is what an NLoS beep the classifier missed looks
+      // like: no sign that the track is lost, and kept out of a next fix. Too SHORT ranges (no path
+      // is shorter than the direct one), or nearly every range rejected, say the track is wrong.
+      if (!b_long) {
         init_.push_back(InitRange{m.beacon, m.t_s, m.range_m});
         while (!init_.empty() && m.t_s - init_.front().t_s > init_window_s_) init_.pop_front();
       }
-      recent_.push_back(!ok && !too_long);
+      recent_.push_back(!b_ok && !b_long);
       while (recent_.size() > static_cast<std::size_t>(2 * reinit_after_)) recent_.pop_front();
+      if (b_ok) {
+        rejected_run_ = 0;
+        rejected_beacons_ = 0;
+      } else {
+        ++rejected_run_;
+        rejected_beacons_ |= 1u << (m.beacon % 32);
+      }
       int recent_rejects = 0;
       for (bool r : recent_) recent_rejects += r;
-      if (!ok) {
+      if (!b_ok) {
         gated = true;
         ++gated_;
-        if (recent_rejects >= reinit_after_) {  // lost: a new fix for the position, ψ and k kept
-          last_xy_ = pdr_.position();
+        // Lost: too-short ranges, or every range of two or more beacons rejected for a while (a track
+        // that drifted away sees the true ranges as "too long" too).
+        const bool all_rejected = rejected_run_ >= 2 * reinit_after_ && std::popcount(rejected_beacons_) >= 2;
+        if (recent_rejects >= reinit_after_ || all_rejected) {  // a new fix
+          last_xy_ = hyps_[best_hyp()].tracker.position();
           have_last_ = true;
           tracker_ = Tracker(tcfg_);
           recent_.clear();
-          if (try_init(m.t_s)) pdr_.reset_position(tracker_.position(), tracker_.position_cov(), 0.1);
+          rejected_run_ = 0;
+          rejected_beacons_ = 0;
+          if (try_init(m.t_s))
+            for (Hypothesis& h : hyps_) h.tracker.reset_position(tracker_.position(), tracker_.position_cov(), 0.1);
         }
       }
     }
@@ -432,13 +449,27 @@ class SpyLocLocalizer final : public Localizer {
     e.frame = NameTag("world");
     e.target = NameTag(device_);
     e.t_s = t;
-    const bool pdr = pdr_.initialised();
-    const auto xy = pdr ? pdr_.position() : tracker_.position();
+    const bool pdr = pdr_active();
+    const std::size_t b = pdr ? best_hyp() : 0;
+    const auto xy = pdr ? hyps_[b].tracker.position() : tracker_.position();
     e.position_m = {xy[0], xy[1], z_};
     e.dims = 2;
-    e.std_m = std::max(std_floor_, pdr ? pdr_std_scale_ * pdr_.position_std() : std_scale_ * tracker_.position_std());
+    e.std_m = std::max(std_floor_, pdr ? pdr_std_scale_ * hyps_[b].tracker.position_std() : std_scale_ * tracker_.position_std());
+    bool pdr_ambiguous = false;
+    if (pdr) {  // other heading hypotheses nearly as likely elsewhere: say so, and widen the std
+      double spread = 0.0;
+      for (const Hypothesis& h : hyps_)
+        if (h.loglik >= hyps_[b].loglik - 3.0) {
+          const auto q = h.tracker.position();
+          spread = std::max(spread, std::hypot(q[0] - xy[0], q[1] - xy[1]));
+        }
+      if (spread > 1.0) pdr_ambiguous = true;
+      e.std_m = std::hypot(e.std_m, spread);
+    }
     double conf = std::exp(-e.std_m / 1.0);
-    if (ambiguous_) {
+    // The fix's mirror ambiguity matters until dead reckoning weighs the track; then only the
+    // hypotheses' disagreement does.
+    if (pdr ? pdr_ambiguous : ambiguous_) {
       e.flags |= kEstimateAmbiguous;
       conf *= 0.5;
     }
@@ -462,13 +493,17 @@ class SpyLocLocalizer final : public Localizer {
   TrackerConfig tcfg_;
   PdrConfig pcfg_;
   bool dead_reckoning_ = true;
-  double align_spread_m_ = 1.5, align_window_s_ = 12.0, hold_s_ = 1.5, pdr_std_scale_ = 1.0, pdr_since_s_ = 0.0;
+  struct Hypothesis {
+    PdrTracker tracker;
+    double loglik = 0.0;
+  };
+  std::vector<Hypothesis> hyps_;
+  int n_hyp_ = 12, rejected_run_ = 0;
+  std::uint32_t rejected_beacons_ = 0;  ///< bit per beacon (mod 32) among the current run of rejections
+  double prune_loglik_ = 15.0, hold_s_ = 1.5, pdr_std_scale_ = 2.3, pdr_since_s_ = 0.0;
   double latest_t_ = -1e300;
   dsp::DeadReckoning dr_;
-  PdrTracker pdr_;
   Eigen::Vector2d applied_dr_ = Eigen::Vector2d::Zero();
-  std::deque<double> align_t_;
-  std::deque<std::array<double, 2>> align_dr_, align_track_;
   std::deque<RangeMeas> queued_;
   std::uint64_t steps_ = 0;
   std::vector<Beacon> beacons_;
@@ -515,14 +550,14 @@ const ParamSchema& schema() {
       bool_param("dead_reckoning", true,
                  "Carry the track with the walker's steps (`step` events) and heading (`attitude` events) once they can be "
                  "aligned with the ranged track (the paper's PDR); without step events the constant-velocity tracker stays."),
-      float_param("align_spread_m", 1.5, 0.2, 100.0, "m",
-                  "Dead reckoning starts when the dead-reckoned path of the last align_window_s spreads this far (rms about its mean)."),
-      float_param("align_window_s", 12.0, 1.0, 600.0, "s", "Window of (dead-reckoned, tracked) positions the alignment is fitted on."),
+      int_param("heading_hypotheses", std::int64_t{12}, 1, 72, "",
+                "Dead reckoning: heading offsets tried at once (the phone's heading vs the world is unknown); the ranges weigh them."),
+      float_param("prune_loglik", 15.0, 1.0, 1000.0, "", "Dead reckoning: a hypothesis this far (log-likelihood) below the best is dropped."),
       float_param("step_wait_s", 1.5, 0.0, 10.0, "s",
                   "Dead reckoning: a range waits until the steps up to its time are known, at most this long (a standing walker makes none)."),
-      float_param("stride_std", 0.08, 0.0, 1.0, "", "Dead reckoning: per-step stride error (fraction of the stride)."),
-      float_param("step_heading_std_rad", 0.06, 0.0, 1.0, "rad", "Dead reckoning: per-step direction error."),
-      float_param("pdr_std_scale", 1.0, 0.01, 100.0, "", "Scale of the dead-reckoning filter's std (std_m = this x its position std)."),
+      float_param("stride_std", 0.15, 0.0, 1.0, "", "Dead reckoning: per-step stride error (fraction of the stride)."),
+      float_param("step_heading_std_rad", 0.12, 0.0, 1.0, "rad", "Dead reckoning: per-step direction error."),
+      float_param("pdr_std_scale", 2.3, 0.01, 100.0, "", "Scale of the dead-reckoning filter's std (std_m = this x its position std)."),
   };
   return s;
 }

@@ -135,6 +135,7 @@ bool PdrTracker::update_range(const std::array<double, 3>& b, double z_m, double
   H(0) = d.x() / r;
   H(1) = d.y() / r;
   const double S = (H * P_ * H.transpose())(0, 0) + std_m * std_m;
+  last_S_ = S;
   const double nu = range_m - r;
   nis = nu * nu / S;
   const double gate = nu > 0.0 ? cfg_.gate_long_sigma : cfg_.gate_sigma;

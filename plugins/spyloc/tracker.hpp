@@ -91,9 +91,12 @@ class PdrTracker {
   double psi_rad() const { return x_(2); }
   double psi_std_rad() const;
   double stride_scale() const { return x_(3); }
+  /// Innovation variance of the last update_range() call (m²).
+  double last_innovation_var() const { return last_S_; }
 
  private:
   PdrConfig cfg_;
+  double last_S_ = 1.0;
   bool init_ = false;
   Eigen::Vector4d x_ = Eigen::Vector4d::Zero();
   Eigen::Matrix4d P_ = Eigen::Matrix4d::Identity();
