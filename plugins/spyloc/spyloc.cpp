@@ -2,8 +2,10 @@
 // spyloc.hpp; classifier.cpp, solver.cpp and tracker.cpp hold the maths.
 #include "spyloc.hpp"
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <deque>
 #include <filesystem>
@@ -15,6 +17,7 @@
 #include <vector>
 
 #include "classifier.hpp"
+#include "locus/dsp/dead_reckoning.hpp"
 #include "solver.hpp"
 #include "tracker.hpp"
 
@@ -50,6 +53,16 @@ struct PendingBeep {
   std::size_t beacon = 0;
 };
 
+/// A range ready for the tracker (paired, classified), waiting in dead-reckoning mode until the
+/// walker's steps up to its time are known.
+struct RangeMeas {
+  double t_s = 0.0;
+  std::size_t beacon = 0;
+  double range_m = 0.0;
+  double std_m = 0.0;
+  bool los = true;
+};
+
 struct InitRange {
   std::size_t beacon = 0;
   double t_s = 0.0;
@@ -82,6 +95,15 @@ class SpyLocLocalizer final : public Localizer {
     tcfg_.max_speed_mps = params.get_float("max_speed_mps");
     tcfg_.gate_sigma = params.get_float("gate_sigma");
     tcfg_.gate_long_sigma = params.get_float("gate_long_sigma");
+    dead_reckoning_ = params.get_bool("dead_reckoning");
+    n_hyp_ = static_cast<int>(params.get_int("heading_hypotheses"));
+    prune_loglik_ = params.get_float("prune_loglik");
+    hold_s_ = params.get_float("step_wait_s");
+    pdr_std_scale_ = params.get_float("pdr_std_scale");
+    pcfg_.stride_std_frac = params.get_float("stride_std");
+    pcfg_.heading_std_rad = params.get_float("step_heading_std_rad");
+    pcfg_.gate_sigma = tcfg_.gate_sigma;
+    pcfg_.gate_long_sigma = tcfg_.gate_long_sigma;
     region_ = params.get_floats("region_m");
     if (!region_.empty() && (region_.size() != 4 || !(region_[2] > region_[0]) || !(region_[3] > region_[1])))
       throw std::runtime_error("spyloc: param 'region_m': expected [x_min, y_min, x_max, y_max] with max > min, or []");
@@ -128,6 +150,9 @@ class SpyLocLocalizer final : public Localizer {
 
   /// [main]
   std::vector<EventType> subscriptions() const override {
+    if (dead_reckoning_)
+      return {EventType::RadioSync, EventType::AudioDetection, EventType::DecayFeatures, EventType::Step,
+              EventType::Attitude};
     return {EventType::RadioSync, EventType::AudioDetection, EventType::DecayFeatures};
   }
 
@@ -150,6 +175,16 @@ class SpyLocLocalizer final : public Localizer {
           return;
         }
       ++unknown_;
+    } else if (const auto* a = std::get_if<Attitude>(&event)) {
+      if (a->device.view() != device_) return;
+      dr_.add_heading(a->t_s, a->heading_rad);
+    } else if (const auto* st = std::get_if<Step>(&event)) {
+      if (st->device.view() != device_) return;
+      if (dr_.add_step(st->t_s, st->stride_m, st->frequency_hz)) {
+        ++steps_;
+        latest_t_ = std::max(latest_t_, st->t_s);
+        flush_ranges(out, false);
+      }
     } else if (const auto* f = std::get_if<DecayFeatures>(&event)) {
       if (f->device.view() != device_) return;
       if (!detector_.empty() && f->detector.view() != detector_) return;
@@ -166,11 +201,23 @@ class SpyLocLocalizer final : public Localizer {
   }
 
   /// [main]
-  void finish(Publisher&) override {
-    if (log_)
+  void finish(Publisher& out) override {
+    flush_ranges(out, true);
+    if (log_) {
       log_->info("spyloc " + instance_ + ": " + std::to_string(beeps_) + " beeps, " + std::to_string(no_sync_) +
                  " without a sync, " + std::to_string(nlos_) + " NLoS, " + std::to_string(gated_) + " LoS ranges gated out, " +
                  std::to_string(inits_) + " fixes, " + std::to_string(published_) + " estimates");
+      if (pdr_active()) {
+        const PdrTracker& t = hyps_[best_hyp()].tracker;
+        log_->info("spyloc " + instance_ + ": dead reckoning from t = " + std::to_string(pdr_since_s_) + " s (" +
+                   std::to_string(steps_) + " steps, " + std::to_string(hyps_.size()) + " of " + std::to_string(n_hyp_) +
+                   " heading hypotheses left): heading offset " + std::to_string(t.psi_rad() * 180.0 / M_PI) + " deg +- " +
+                   std::to_string(t.psi_std_rad() * 180.0 / M_PI) + ", stride scale " + std::to_string(t.stride_scale()));
+      } else if (dead_reckoning_) {
+        log_->info("spyloc " + instance_ + ": no dead reckoning (" + std::to_string(steps_) +
+                   " steps: no fix after the first step)");
+      }
+    }
   }
 
  private:
@@ -198,6 +245,16 @@ class SpyLocLocalizer final : public Localizer {
     // An uncertain verdict carries the NLoS bias it may hide as variance: + (1 − P(LoS))·nlos_bias_m².
     const double sd = std::sqrt(range_std_ * range_std_ + std::pow(dz * height_std_ / std::max(range, 1.0), 2) +
                                 (1.0 - pl) * nlos_bias_m_ * nlos_bias_m_);
+    if (dead_reckoning_ && !pdr_active() && dr_.steps() > 0 && tracker_.initialised()) {
+      tracker_.predict(p.t_s);
+      start_pdr(p.t_s, tracker_.position(), tracker_.position_cov());
+    }
+    if (pdr_active()) {
+      queued_.push_back(RangeMeas{p.t_s, p.beacon, range, sd, los});
+      latest_t_ = std::max(latest_t_, p.t_s);
+      flush_ranges(out, false);
+      return;
+    }
     bool gated = false;
     if (!tracker_.initialised()) {
       if (!los) return;
@@ -232,6 +289,109 @@ class SpyLocLocalizer final : public Localizer {
       }
     }
     publish(p.t_s, los, gated, out);
+  }
+
+  /// Dead reckoning starts at the track's current fix with one hypothesis per heading offset ψ
+  /// (the rotation from the phone's relative heading to the world is unknown: n_hyp evenly spaced,
+  /// each ± half the spacing) and stride scale 1 ± 0.15; the ranges weigh them (a Gaussian sum:
+  /// each hypothesis an EKF, its weight the likelihood of the ranges it saw).
+  void start_pdr(double t, const std::array<double, 2>& xy, const std::array<double, 3>& cov) {
+    hyps_.clear();
+    for (int i = 0; i < n_hyp_; ++i) {
+      PdrTracker p(pcfg_);
+      p.init(xy, cov, -M_PI + 2.0 * M_PI * (i + 0.5) / n_hyp_, M_PI / n_hyp_, 1.0, 0.15);
+      hyps_.push_back(Hypothesis{p, 0.0});
+    }
+    const Eigen::Vector2d d = dr_.position_at(t);
+    applied_dr_ = d;
+    pdr_since_s_ = t;
+  }
+  bool pdr_active() const noexcept { return !hyps_.empty(); }
+  std::size_t best_hyp() const {
+    std::size_t b = 0;
+    for (std::size_t i = 1; i < hyps_.size(); ++i)
+      if (hyps_[i].loglik > hyps_[b].loglik) b = i;
+    return b;
+  }
+
+  /// PDR mode: the queued ranges whose time the steps already cover (or older than step_wait_s:
+  /// the walker stands), in time order; all of them at the end.
+  void flush_ranges(Publisher& out, bool all) {
+    if (!pdr_active() || queued_.empty()) return;
+    std::sort(queued_.begin(), queued_.end(), [](const RangeMeas& x, const RangeMeas& y) { return x.t_s < y.t_s; });
+    const double covered = dr_.steps() > 0 ? dr_.step_end_s(dr_.steps() - 1) : -1e300;
+    while (!queued_.empty()) {
+      const RangeMeas m = queued_.front();
+      if (!all && m.t_s > covered && m.t_s > latest_t_ - hold_s_) break;
+      queued_.pop_front();
+      pdr_range(m, out);
+    }
+  }
+
+  void pdr_range(const RangeMeas& m, Publisher& out) {
+    const Eigen::Vector2d d = dr_.position_at(m.t_s);
+    for (Hypothesis& h : hyps_) h.tracker.step({d.x() - applied_dr_.x(), d.y() - applied_dr_.y()});
+    applied_dr_ = d;
+    bool gated = false;
+    if (m.los) {
+      const auto& bp = beacons_[m.beacon].anchor;
+      std::vector<char> ok(hyps_.size()), too_long(hyps_.size());
+      for (std::size_t i = 0; i < hyps_.size(); ++i) {
+        PdrTracker& t = hyps_[i].tracker;
+        const auto xy = t.position();
+        const double predicted = std::sqrt(std::pow(xy[0] - bp[0], 2) + std::pow(xy[1] - bp[1], 2) + std::pow(z_ - bp[2], 2));
+        double nis = 0.0;
+        ok[i] = t.update_range(bp, z_, m.range_m, m.std_m, nis);
+        too_long[i] = !ok[i] && m.range_m > predicted;
+        // The range's likelihood under this hypothesis; a gated-out one costs what the gate allows
+        // (an NLoS beep must not decide between hypotheses on its own).
+        const double g = too_long[i] ? pcfg_.gate_long_sigma : pcfg_.gate_sigma;
+        hyps_[i].loglik += -0.5 * (ok[i] ? nis : g * g) - 0.5 * std::log(t.last_innovation_var());
+      }
+      const std::size_t b = best_hyp();
+      // Hypotheses far less likely than the best are dropped (never the best).
+      std::vector<Hypothesis> kept;
+      for (const Hypothesis& h : hyps_)
+        if (h.loglik >= hyps_[b].loglik - prune_loglik_) kept.push_back(h);
+      const bool b_ok = ok[b], b_long = too_long[b];
+      hyps_ = std::move(kept);
+      // A range longer than the best track allows is what an NLoS beep the classifier missed looks
+      // like: no sign that the track is lost, and kept out of a next fix. Too SHORT ranges (no path
+      // is shorter than the direct one), or nearly every range rejected, say the track is wrong.
+      if (!b_long) {
+        init_.push_back(InitRange{m.beacon, m.t_s, m.range_m});
+        while (!init_.empty() && m.t_s - init_.front().t_s > init_window_s_) init_.pop_front();
+      }
+      recent_.push_back(!b_ok && !b_long);
+      while (recent_.size() > static_cast<std::size_t>(2 * reinit_after_)) recent_.pop_front();
+      if (b_ok) {
+        rejected_run_ = 0;
+        rejected_beacons_ = 0;
+      } else {
+        ++rejected_run_;
+        rejected_beacons_ |= 1u << (m.beacon % 32);
+      }
+      int recent_rejects = 0;
+      for (bool r : recent_) recent_rejects += r;
+      if (!b_ok) {
+        gated = true;
+        ++gated_;
+        // Lost: too-short ranges, or every range of two or more beacons rejected for a while (a track
+        // that drifted away sees the true ranges as "too long" too).
+        const bool all_rejected = rejected_run_ >= 2 * reinit_after_ && std::popcount(rejected_beacons_) >= 2;
+        if (recent_rejects >= reinit_after_ || all_rejected) {  // a new fix
+          last_xy_ = hyps_[best_hyp()].tracker.position();
+          have_last_ = true;
+          tracker_ = Tracker(tcfg_);
+          recent_.clear();
+          rejected_run_ = 0;
+          rejected_beacons_ = 0;
+          if (try_init(m.t_s))
+            for (Hypothesis& h : hyps_) h.tracker.reset_position(tracker_.position(), tracker_.position_cov(), 0.1);
+        }
+      }
+    }
+    publish(m.t_s, m.los, gated, out);
   }
 
   bool try_init(double t) {
@@ -289,12 +449,27 @@ class SpyLocLocalizer final : public Localizer {
     e.frame = NameTag("world");
     e.target = NameTag(device_);
     e.t_s = t;
-    const auto xy = tracker_.position();
+    const bool pdr = pdr_active();
+    const std::size_t b = pdr ? best_hyp() : 0;
+    const auto xy = pdr ? hyps_[b].tracker.position() : tracker_.position();
     e.position_m = {xy[0], xy[1], z_};
     e.dims = 2;
-    e.std_m = std::max(std_floor_, std_scale_ * tracker_.position_std());
+    e.std_m = std::max(std_floor_, pdr ? pdr_std_scale_ * hyps_[b].tracker.position_std() : std_scale_ * tracker_.position_std());
+    bool pdr_ambiguous = false;
+    if (pdr) {  // other heading hypotheses nearly as likely elsewhere: say so, and widen the std
+      double spread = 0.0;
+      for (const Hypothesis& h : hyps_)
+        if (h.loglik >= hyps_[b].loglik - 3.0) {
+          const auto q = h.tracker.position();
+          spread = std::max(spread, std::hypot(q[0] - xy[0], q[1] - xy[1]));
+        }
+      if (spread > 1.0) pdr_ambiguous = true;
+      e.std_m = std::hypot(e.std_m, spread);
+    }
     double conf = std::exp(-e.std_m / 1.0);
-    if (ambiguous_) {
+    // The fix's mirror ambiguity matters until dead reckoning weighs the track; then only the
+    // hypotheses' disagreement does.
+    if (pdr ? pdr_ambiguous : ambiguous_) {
       e.flags |= kEstimateAmbiguous;
       conf *= 0.5;
     }
@@ -316,6 +491,21 @@ class SpyLocLocalizer final : public Localizer {
   int reinit_after_ = 3;
   std::vector<double> region_;
   TrackerConfig tcfg_;
+  PdrConfig pcfg_;
+  bool dead_reckoning_ = true;
+  struct Hypothesis {
+    PdrTracker tracker;
+    double loglik = 0.0;
+  };
+  std::vector<Hypothesis> hyps_;
+  int n_hyp_ = 12, rejected_run_ = 0;
+  std::uint32_t rejected_beacons_ = 0;  ///< bit per beacon (mod 32) among the current run of rejections
+  double prune_loglik_ = 15.0, hold_s_ = 1.5, pdr_std_scale_ = 2.3, pdr_since_s_ = 0.0;
+  double latest_t_ = -1e300;
+  dsp::DeadReckoning dr_;
+  Eigen::Vector2d applied_dr_ = Eigen::Vector2d::Zero();
+  std::deque<RangeMeas> queued_;
+  std::uint64_t steps_ = 0;
   std::vector<Beacon> beacons_;
   std::deque<PendingBeep> pending_;
   std::deque<InitRange> init_;
@@ -357,6 +547,17 @@ const ParamSchema& schema() {
                        "[x_min, y_min, x_max, y_max] where the walker can be (resolves the mirror fix of beacons in a line); [] = unknown.", 0, 4),
       float_param("std_scale", 2.36, 0.01, 100.0, "", "Scale of the filter's std: measured so that 68 % of errors fall within std_m (simulated seeds 101-120; spyloc-104: 71 %)."),
       float_param("std_floor_m", 0.05, 0.0, 10.0, "m", "Smallest reported std_m."),
+      bool_param("dead_reckoning", true,
+                 "Carry the track with the walker's steps (`step` events) and heading (`attitude` events) once they can be "
+                 "aligned with the ranged track (the paper's PDR); without step events the constant-velocity tracker stays."),
+      int_param("heading_hypotheses", std::int64_t{12}, 1, 72, "",
+                "Dead reckoning: heading offsets tried at once (the phone's heading vs the world is unknown); the ranges weigh them."),
+      float_param("prune_loglik", 15.0, 1.0, 1000.0, "", "Dead reckoning: a hypothesis this far (log-likelihood) below the best is dropped."),
+      float_param("step_wait_s", 1.5, 0.0, 10.0, "s",
+                  "Dead reckoning: a range waits until the steps up to its time are known, at most this long (a standing walker makes none)."),
+      float_param("stride_std", 0.15, 0.0, 1.0, "", "Dead reckoning: per-step stride error (fraction of the stride)."),
+      float_param("step_heading_std_rad", 0.12, 0.0, 1.0, "rad", "Dead reckoning: per-step direction error."),
+      float_param("pdr_std_scale", 2.3, 0.01, 100.0, "", "Scale of the dead-reckoning filter's std (std_m = this x its position std)."),
   };
   return s;
 }

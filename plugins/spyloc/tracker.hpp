@@ -14,6 +14,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <vector>
 
 namespace locus::plugins::spyloc {
 
@@ -45,6 +46,8 @@ class Tracker {
   std::array<double, 2> velocity() const { return {x_(2), x_(3)}; }
   /// sqrt of the position covariance trace.
   double position_std() const;
+  /// Position covariance (xx, xy, yy).
+  std::array<double, 3> position_cov() const { return {P_(0, 0), P_(0, 1), P_(1, 1)}; }
   double t_s() const noexcept { return t_; }
 
  private:
@@ -54,5 +57,57 @@ class Tracker {
   Eigen::Vector4d x_ = Eigen::Vector4d::Zero();
   Eigen::Matrix4d P_ = Eigen::Matrix4d::Identity();
 };
+
+/// Pedestrian dead-reckoning tracker (the paper's §VI motion model): the walker moves only by its
+/// steps. State [x, y, ψ, k]: position, the rotation ψ from the dead-reckoning frame (relative
+/// heading of the phone, core/dsp/dead_reckoning.hpp) to the world, and the stride scale k (the step
+/// detector's stride model vs this walker). A step's displacement d (dead-reckoning frame) moves the
+/// walker by k·R(ψ)·d; each LoS range corrects position, ψ and k together (the paper's "step model
+/// fitted from ranging"). Standing still, the position holds: no constant-velocity drift.
+struct PdrConfig {
+  double stride_std_frac = 0.08;  ///< per-step stride error (fraction of the stride)
+  double heading_std_rad = 0.06;  ///< per-step direction error (sway, trunk rotation)
+  double psi_walk_rad = 0.01;     ///< per-step random walk of ψ (gyro drift, phone re-gripped)
+  double k_walk = 0.004;          ///< per-step random walk of k
+  double gate_sigma = 4.0;
+  double gate_long_sigma = 2.5;
+};
+
+class PdrTracker {
+ public:
+  explicit PdrTracker(PdrConfig cfg = {}) : cfg_(cfg) {}
+  /// Starts at xy (covariance xx, xy, yy) with ψ ± psi_std and k ± k_std.
+  void init(const std::array<double, 2>& xy, const std::array<double, 3>& cov, double psi_rad, double psi_std_rad,
+            double k, double k_std);
+  /// A new position (a fix after the track was lost); ψ and k stay, their variances widened.
+  void reset_position(const std::array<double, 2>& xy, const std::array<double, 3>& cov, double psi_widen_rad);
+  bool initialised() const noexcept { return init_; }
+  /// Moves by the dead-reckoning displacement d_m (x, y in the dead-reckoning frame).
+  void step(const std::array<double, 2>& d_m);
+  /// As Tracker::update_range.
+  bool update_range(const std::array<double, 3>& beacon, double z_m, double range_m, double std_m, double& nis);
+  std::array<double, 2> position() const { return {x_(0), x_(1)}; }
+  double position_std() const;
+  double psi_rad() const { return x_(2); }
+  double psi_std_rad() const;
+  double stride_scale() const { return x_(3); }
+  /// Innovation variance of the last update_range() call (m²).
+  double last_innovation_var() const { return last_S_; }
+
+ private:
+  PdrConfig cfg_;
+  double last_S_ = 1.0;
+  bool init_ = false;
+  Eigen::Vector4d x_ = Eigen::Vector4d::Zero();
+  Eigen::Matrix4d P_ = Eigen::Matrix4d::Identity();
+};
+
+/// Rotation ψ and scale k that map the dead-reckoning path onto the tracked one (2-D Procrustes on
+/// centred point sets, least squares): track − mean ≈ k·R(ψ)·(dr − mean). `spread_m` = rms distance
+/// of the dead-reckoning points from their mean; `rms_m` = the fit's rms residual.
+struct Alignment {
+  double psi_rad = 0.0, k = 1.0, spread_m = 0.0, rms_m = 0.0;
+};
+Alignment align_paths(const std::vector<std::array<double, 2>>& dr, const std::vector<std::array<double, 2>>& track);
 
 }  // namespace locus::plugins::spyloc

@@ -21,6 +21,7 @@ import numpy as np
 
 
 from campaign_common import parse_seeds as seeds_of
+from spyloc_errors import errors as estimate_errors, summary as error_summary
 
 
 def main():
@@ -37,7 +38,7 @@ def main():
     work = a.keep or tempfile.mkdtemp(prefix='spyloc-campaign-')
     os.makedirs(work, exist_ok=True)
     rows = []
-    all_err = []
+    pooled = []
     for seed in seeds_of(a.seeds):
         sc = os.path.join(work, f's{seed}')
         cmd = [a.locus, 'simulate', 'spyloc', sc, '--seed', str(seed), '--difficulty', a.difficulty, '-q']
@@ -62,6 +63,7 @@ def main():
             summ = res['summary']
         row = {'seed': seed, 'eval': summ,
                'los_found': d.get('los', {}).get('found_ok_frac'), 'los_within1': d.get('los', {}).get('within1_frac')}
+        pooled += estimate_errors(sc, est)
         rows.append(row)
         if not a.json:
             print(f"seed {seed:3d}: p90 {summ.get('p90_error_m', float('nan')):.2f} m, median "
@@ -70,12 +72,16 @@ def main():
                   flush=True)
     p90s = np.array([r['eval'].get('p90_error_m', np.nan) for r in rows], float)
     out = {'seeds': rows, 'median_of_p90_m': float(np.nanmedian(p90s)), 'worst_p90_m': float(np.nanmax(p90s)),
-           'seeds_p90_le_0_8': int(np.sum(p90s <= 0.8)), 'work': work}
+           'seeds_p90_le_0_8': int(np.sum(p90s <= 0.8)), 'pooled': error_summary(pooled), 'work': work}
     if a.json:
         print(json.dumps(out, indent=1))
     else:
         print(f"{len(rows)} seeds: p90 median over seeds {out['median_of_p90_m']:.2f} m, worst {out['worst_p90_m']:.2f} m, "
               f"{out['seeds_p90_le_0_8']} seeds with p90 <= 0.8 m (scenes in {work})")
+        p = out['pooled']
+        if p.get('estimates'):
+            print(f"pooled: {p['estimates']} estimates, median {p['median_m']:.2f} m, p90 {p['p90_m']:.2f} m; "
+                  f"within 1 std {100 * p['within_1std']:.0f} %, within 2 std {100 * p['within_2std']:.0f} %")
 
 
 if __name__ == '__main__':

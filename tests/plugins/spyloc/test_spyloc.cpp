@@ -4,6 +4,7 @@
 // out, lost syncs skipped), and clear errors on bad setups and model files.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -137,6 +138,39 @@ TEST(SpyLocClassifier, SeparatesKnownClassesAndRoundTripsItsFile) {
   EXPECT_THROW(c.train(los, make(0.04, 0.01, 5, 0.0), 4), std::invalid_argument);
 }
 
+// The dead-reckoning tracker learns the heading offset and the stride scale from single ranges: the
+// steps come in a frame rotated by 0.7 rad with strides 1/0.9 too long; it starts 0.25 rad and 10 %
+// off, walks an L with one range per step, and ends with both within a few percent, the position
+// within 0.15 m; standing still (no step), the position holds.
+TEST(SpyLocPdrTracker, StepsAndSingleRangesLearnHeadingAndStride) {
+  const std::vector<std::array<double, 3>> b = {{1.5, 1.5, 2.5}, {22.5, 1.5, 2.5}, {12.0, 14.5, 2.5}};
+  const double psi = 0.7, k = 0.9;
+  PdrTracker t;
+  t.init({4.0, 4.0}, {0.04, 0.0, 0.04}, psi - 0.25, 0.3, 1.0, 0.15);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0.0, 0.05);
+  std::array<double, 2> w{4.0, 4.0};
+  for (int i = 0; i < 50; ++i) {
+    const double phi = i < 25 ? 0.0 : M_PI / 2;  // east, then north
+    const double stride = 0.66;
+    w = {w[0] + stride * std::cos(phi), w[1] + stride * std::sin(phi)};
+    // The same step in the dead-reckoning frame: R(-psi), stride / k.
+    const double c = std::cos(-psi), sn = std::sin(-psi), sx = stride / k * std::cos(phi), sy = stride / k * std::sin(phi);
+    t.step({c * sx - sn * sy, sn * sx + c * sy});
+    const auto& bk = b[static_cast<std::size_t>(i % 3)];
+    const double r = std::sqrt(std::pow(w[0] - bk[0], 2) + std::pow(w[1] - bk[1], 2) + std::pow(1.2 - bk[2], 2)) + n(rng);
+    double nis = 0.0;
+    EXPECT_TRUE(t.update_range(bk, 1.2, r, 0.05, nis)) << i;
+  }
+  EXPECT_NEAR(t.psi_rad(), psi, 0.04);
+  EXPECT_NEAR(t.stride_scale(), k, 0.04);
+  EXPECT_LT(std::hypot(t.position()[0] - w[0], t.position()[1] - w[1]), 0.15);
+  const auto held = t.position();
+  t.step({0.0, 0.0});
+  EXPECT_EQ(t.position()[0], held[0]);
+  EXPECT_EQ(t.position()[1], held[1]);
+}
+
 struct Pub : Publisher {
   std::vector<Estimate> est;
   void publish(const Event& e) override {
@@ -231,6 +265,110 @@ TEST(SpyLocPlugin, EndToEndOnSyntheticEvents) {
   const double p90 = errs[errs.size() * 9 / 10];
   std::printf("synthetic walk: %zu estimates scored, p90 error %.3f m\n", errs.size(), p90);
   EXPECT_LT(p90, 0.15);
+}
+
+// Dead reckoning in the plugin: three beacons heard for 8 s, then only one for 22 s while the walker
+// turns twice. The steps (in a frame rotated by an unknown 0.7 rad, strides 10 % long) carry the
+// track through the turns; the constant-velocity tracker (dead_reckoning: false, same events) cannot.
+TEST(SpyLocPlugin, DeadReckoningCarriesTheTrackOnOneBeacon) {
+  test::TestHost host;
+  FftwPlanner fftw({}, false);
+  const std::vector<std::array<double, 3>> b = {{1.5, 1.5, 2.5}, {22.5, 1.5, 2.5}, {12.0, 14.5, 2.5}};
+  const std::vector<std::vector<double>> tones = {{18000, 19000, 20000}, {18250, 18750, 20250}, {18500, 19250, 19500, 19750}};
+  std::vector<SceneSignal> scene;
+  for (int i = 0; i < 3; ++i) {
+    SceneSignal s;
+    s.id = "B" + std::to_string(i + 1);
+    s.signal.type = "multitone";
+    s.signal.tones_hz = tones[static_cast<std::size_t>(i)];
+    s.signal.duration_s = 0.06;
+    s.signal.sync_delay_s = 0.05;
+    s.has_anchor = true;
+    s.anchor_m = b[static_cast<std::size_t>(i)];
+    scene.push_back(s);
+  }
+  DeviceGeometry g;
+  g.scene_emits = scene;
+  auto mask = [&](int i) {
+    std::uint16_t m = 0;
+    for (double f : tones[static_cast<std::size_t>(i)]) m |= static_cast<std::uint16_t>(1u << static_cast<int>((f - 18000) / 250));
+    return m;
+  };
+  // The walk: 1.2 m/s east for 10 s, north for 10 s, west for 10 s; a step every 0.55 s.
+  auto phi_at = [](double t) { return t < 10.0 ? 0.0 : t < 20.0 ? M_PI / 2 : M_PI; };
+  auto pos_at = [](double t) {
+    const double a = std::min(t, 10.0), n = std::clamp(t - 10.0, 0.0, 10.0), w = std::clamp(t - 20.0, 0.0, 10.0);
+    return std::array<double, 2>{5.0 + 1.2 * a - 1.2 * w, 3.0 + 1.2 * n};
+  };
+  const double psi = 0.7, stride_bias = 1.1;
+  auto run = [&](bool dead_reckoning) {
+    std::unique_ptr<Localizer> loc(descriptor()->create_localizer());
+    Params p = Params::defaults(schema());
+    p.set("speed_of_sound_mps", 343.0);
+    p.set("dead_reckoning", dead_reckoning);
+    HostContext ctx{host.log, host.clock, fftw, host.link, "spyloc", "W", &g};
+    loc->configure(p, ctx);
+    Pub out;
+    std::vector<double> late;
+    double next_att = 0.0, next_step = 0.55, next_beep = 0.2;
+    int beep = 0;
+    for (double t = 0.0; t < 30.0; t += 0.01) {
+      if (t >= next_att) {  // relative heading: h = phi + pi/2 - psi (docs: step direction (-sin h, cos h))
+        Attitude a;
+        a.device = DeviceId("W");
+        a.t_s = t;
+        a.heading_rad = static_cast<float>(phi_at(t) + M_PI / 2 - psi);
+        loc->on_event(Event{a}, out);
+        next_att += 0.05;
+      }
+      if (t >= next_step) {
+        Step st;
+        st.device = DeviceId("W");
+        st.t_s = t;
+        st.stride_m = static_cast<float>(0.66 * stride_bias);
+        st.frequency_hz = 1.0f / 0.55f;
+        loc->on_event(Event{st}, out);
+        next_step += 0.55;
+      }
+      if (t >= next_beep) {
+        const int i = t < 8.0 ? beep % 3 : 0;
+        ++beep;
+        next_beep += 0.333;
+        const auto w = pos_at(t);
+        const double r = std::sqrt(std::pow(w[0] - b[i][0], 2) + std::pow(w[1] - b[i][1], 2) + std::pow(1.2 - b[i][2], 2));
+        RadioSync s;
+        s.device = DeviceId("W");
+        s.t_s = t;
+        s.source = NameTag("B" + std::to_string(i + 1));
+        loc->on_event(Event{s}, out);
+        AudioDetection d;
+        d.device = DeviceId("W");
+        d.sample_rate_hz = 44100.0;
+        d.frame = (t + 0.05 + r / 343.0) * 44100.0;
+        d.template_index = mask(i);
+        loc->on_event(Event{d}, out);
+        DecayFeatures f;
+        f.device = d.device;
+        f.frame = d.frame;
+        loc->on_event(Event{f}, out);
+      }
+    }
+    loc->finish(out);
+    for (const Estimate& e : out.est) {
+      if (e.t_s < 9.0) continue;
+      const auto w = pos_at(e.t_s);
+      late.push_back(std::hypot(e.position_m[0] - w[0], e.position_m[1] - w[1]));
+    }
+    std::sort(late.begin(), late.end());
+    return late;
+  };
+  const auto pdr = run(true), cv = run(false);
+  ASSERT_GT(pdr.size(), 50u);
+  ASSERT_GT(cv.size(), 50u);
+  const double pdr_p90 = pdr[pdr.size() * 9 / 10], cv_p90 = cv[cv.size() * 9 / 10];
+  std::printf("one beacon for 22 s, two turns: p90 error %.2f m with dead reckoning, %.2f m without\n", pdr_p90, cv_p90);
+  EXPECT_LT(pdr_p90, 0.5);
+  EXPECT_LT(pdr_p90, 0.5 * cv_p90);
 }
 
 TEST(SpyLocPlugin, BadSetupsAreClearErrors) {
