@@ -44,12 +44,18 @@ class FakeIioTree {
   const std::string& root() const noexcept { return root_; }
   std::string path(const std::string& rel) const { return root_ + "/" + rel; }
 
+  /// Replaces the file at once (written aside, then renamed): a source polling it meanwhile reads the
+  /// old or the new content, never an empty file (a sysfs attribute is never seen half-written).
   void write(const std::string& rel, const std::string& content) const {
     const std::filesystem::path p = path(rel);
     std::filesystem::create_directories(p.parent_path());
-    std::ofstream f(p, std::ios::binary | std::ios::trunc);
-    f << content;
-    if (!f) throw std::runtime_error("cannot write " + p.string());
+    const std::filesystem::path tmp = root_ + "/.write-in-progress";  // outside every listed directory
+    {
+      std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+      f << content;
+      if (!f) throw std::runtime_error("cannot write " + tmp.string());
+    }
+    std::filesystem::rename(tmp, p);
   }
   std::string read(const std::string& rel) const {
     std::ifstream f(path(rel), std::ios::binary);
