@@ -361,6 +361,8 @@ class SpyLocLocalizer final : public Localizer {
       if (!b_long) {
         init_.push_back(InitRange{m.beacon, m.t_s, m.range_m});
         while (!init_.empty() && m.t_s - init_.front().t_s > init_window_s_) init_.pop_front();
+        pool_.push_back(InitRange{m.beacon, m.t_s, m.range_m});
+        while (!pool_.empty() && m.t_s - pool_.front().t_s > pdr_fix_window_s_) pool_.pop_front();
       }
       recent_.push_back(!b_ok && !b_long);
       while (recent_.size() > static_cast<std::size_t>(2 * reinit_after_)) recent_.pop_front();
@@ -386,12 +388,47 @@ class SpyLocLocalizer final : public Localizer {
           recent_.clear();
           rejected_run_ = 0;
           rejected_beacons_ = 0;
-          if (try_init(m.t_s))
-            for (Hypothesis& h : hyps_) h.tracker.reset_position(tracker_.position(), tracker_.position_cov(), 0.1);
+          if (const auto fix = pdr_fix(m.t_s)) {
+            for (Hypothesis& h : hyps_) h.tracker.reset_position(fix->xy_m, fix->cov, 0.1);
+            ++inits_;
+          }
         }
       }
     }
     publish(m.t_s, m.los, gated, out);
+  }
+
+  /// A new position at t from the ranges of the last pdr_fix_window_s, each moved to time t by the
+  /// walker's own steps (best hypothesis' ψ and k): a range r_i at t_i to beacon b_i is a range at t
+  /// to the "virtual" beacon b_i + k·R(ψ)·(dr(t) − dr(t_i)). Walking, one beacon gives several such
+  /// beacons (a synthetic aperture), so a fix no longer needs three beacons within init_window_s.
+  /// Of a fix's mirror images, the one nearest the current track.
+  std::optional<Fix> pdr_fix(double t) {
+    if (pool_.size() < 3) return std::nullopt;
+    const PdrTracker& best = hyps_[best_hyp()].tracker;
+    const double c = std::cos(best.psi_rad()), sn = std::sin(best.psi_rad()), k = best.stride_scale();
+    const Eigen::Vector2d dt_now = dr_.position_at(t);
+    std::vector<RangeObs> obs;
+    for (const InitRange& r : pool_) {
+      const Eigen::Vector2d d = dt_now - dr_.position_at(r.t_s);
+      RangeObs o;
+      o.beacon_m = beacons_[r.beacon].anchor;
+      o.beacon_m[0] += k * (c * d.x() - sn * d.y());
+      o.beacon_m[1] += k * (sn * d.x() + c * d.y());
+      o.range_m = r.range_m;
+      o.std_m = std::hypot(range_std_, 0.1 * d.norm());  // the steps' own error over that walk
+      obs.push_back(o);
+    }
+    std::vector<Fix> fixes = trilaterate(obs, z_);
+    if (fixes.empty()) return std::nullopt;
+    const auto cur = best.position();
+    const Fix* pick = &fixes[0];
+    for (const Fix& f : fixes)
+      if (std::hypot(f.xy_m[0] - cur[0], f.xy_m[1] - cur[1]) < std::hypot(pick->xy_m[0] - cur[0], pick->xy_m[1] - cur[1]) &&
+          f.rms_residual_m < 2.0 * fixes[0].rms_residual_m + 0.1)
+        pick = &f;
+    if (pick->rms_residual_m > 0.5) return std::nullopt;  // the ranges disagree: keep the track
+    return *pick;
   }
 
   bool try_init(double t) {
@@ -509,6 +546,8 @@ class SpyLocLocalizer final : public Localizer {
   std::vector<Beacon> beacons_;
   std::deque<PendingBeep> pending_;
   std::deque<InitRange> init_;
+  std::deque<InitRange> pool_;  ///< dead reckoning: LoS ranges of the last pdr_fix_window_s (not too long)
+  double pdr_fix_window_s_ = 4.0;
   LosClassifier classifier_;
   Tracker tracker_;
   bool ambiguous_ = false;
