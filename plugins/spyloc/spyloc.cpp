@@ -97,6 +97,7 @@ class SpyLocLocalizer final : public Localizer {
     tcfg_.gate_long_sigma = params.get_float("gate_long_sigma");
     dead_reckoning_ = params.get_bool("dead_reckoning");
     n_hyp_ = static_cast<int>(params.get_int("heading_hypotheses"));
+    publish_steps_ = params.get_bool("publish_steps");
     prune_loglik_ = params.get_float("prune_loglik");
     hold_s_ = params.get_float("step_wait_s");
     pdr_std_scale_ = params.get_float("pdr_std_scale");
@@ -184,6 +185,12 @@ class SpyLocLocalizer final : public Localizer {
         ++steps_;
         latest_t_ = std::max(latest_t_, st->t_s);
         flush_ranges(out, false);
+        if (publish_steps_) {  // the step again, its stride scaled by what ranging learnt (k)
+          Step calibrated = *st;
+          calibrated.detector = NameTag(instance_);
+          if (pdr_active()) calibrated.stride_m = static_cast<float>(st->stride_m * hyps_[best_hyp()].tracker.stride_scale());
+          out.publish(Event{calibrated});
+        }
       }
     } else if (const auto* f = std::get_if<DecayFeatures>(&event)) {
       if (f->device.view() != device_) return;
@@ -529,7 +536,7 @@ class SpyLocLocalizer final : public Localizer {
   std::vector<double> region_;
   TrackerConfig tcfg_;
   PdrConfig pcfg_;
-  bool dead_reckoning_ = true;
+  bool dead_reckoning_ = true, publish_steps_ = true;
   struct Hypothesis {
     PdrTracker tracker;
     double loglik = 0.0;
@@ -591,6 +598,9 @@ const ParamSchema& schema() {
                  "aligned with the ranged track (the paper's PDR); without step events the constant-velocity tracker stays."),
       int_param("heading_hypotheses", std::int64_t{12}, 1, 72, "",
                 "Dead reckoning: heading offsets tried at once (the phone's heading vs the world is unknown); the ranges weigh them."),
+      bool_param("publish_steps", true,
+                 "Dead reckoning: publish each step again (detector = this instance) with its stride scaled by the stride "
+                 "scale ranging has learnt so far (unscaled before the first fix)."),
       float_param("prune_loglik", 15.0, 1.0, 1000.0, "", "Dead reckoning: a hypothesis this far (log-likelihood) below the best is dropped."),
       float_param("step_wait_s", 1.5, 0.0, 10.0, "s",
                   "Dead reckoning: a range waits until the steps up to its time are known, at most this long (a standing walker makes none)."),

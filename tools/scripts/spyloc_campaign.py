@@ -49,7 +49,7 @@ def main():
         est = sc + '.jsonl'
         with open(est, 'w') as f:
             subprocess.run([a.locus, 'replay', sc, '--config', a.config, '--speed', 'max',
-                            '--events', 'estimate,audio_detection,decay_features'], stdout=f, check=True,
+                            '--events', 'estimate,audio_detection,decay_features,step'], stdout=f, check=True,
                            stderr=subprocess.DEVNULL)
         ev = subprocess.run([a.locus, 'eval', sc, est, '--metric', 'spyloc', '--json'], capture_output=True, text=True)
         res = json.loads(ev.stdout) if ev.stdout.strip().startswith('{') else {}
@@ -67,17 +67,21 @@ def main():
         rows.append(row)
         if not a.json:
             print(f"seed {seed:3d}: p90 {summ.get('p90_error_m', float('nan')):.2f} m, median "
-                  f"{summ.get('median_error_m', float('nan')):.2f} m, estimates {summ.get('estimates', '?')}; "
+                  f"{summ.get('median_error_m', float('nan')):.2f} m, estimates {summ.get('estimates', '?')}, "
+                  f"stride p90 {100 * (summ.get('p90_stride_error_m') or float('nan')):.1f} cm; "
                   f"LoS beeps found {100 * (row['los_found'] or 0):.1f} %, within 1 sample {100 * (row['los_within1'] or 0):.1f} %",
                   flush=True)
     p90s = np.array([r['eval'].get('p90_error_m', np.nan) for r in rows], float)
-    out = {'seeds': rows, 'median_of_p90_m': float(np.nanmedian(p90s)), 'worst_p90_m': float(np.nanmax(p90s)),
+    strides = np.array([r['eval'].get('p90_stride_error_m') or np.nan for r in rows], float)
+    out = {'seeds': rows, 'stride_p90_worst_m': float(np.nanmax(strides)) if np.isfinite(strides).any() else None, 'median_of_p90_m': float(np.nanmedian(p90s)), 'worst_p90_m': float(np.nanmax(p90s)),
            'seeds_p90_le_0_8': int(np.sum(p90s <= 0.8)), 'pooled': error_summary(pooled), 'work': work}
     if a.json:
         print(json.dumps(out, indent=1))
     else:
         print(f"{len(rows)} seeds: p90 median over seeds {out['median_of_p90_m']:.2f} m, worst {out['worst_p90_m']:.2f} m, "
               f"{out['seeds_p90_le_0_8']} seeds with p90 <= 0.8 m (scenes in {work})")
+        if out['stride_p90_worst_m'] is not None:
+            print(f"stride error p90 per seed: {100 * np.nanmin(strides):.1f}-{100 * np.nanmax(strides):.1f} cm")
         p = out['pooled']
         if p.get('estimates'):
             print(f"pooled: {p['estimates']} estimates, median {p['median_m']:.2f} m, p90 {p['p90_m']:.2f} m; "

@@ -1,5 +1,6 @@
 // SpyLoc (paper 001): position error CDF (median, 80th, 90th percentile) and the LoS / NLoS split,
-// from the estimate's own `los` flag or else the scene's truth_los.csv (docs/eval.md).
+// from the estimate's own `los` flag or else the scene's truth_los.csv, and the stride error of the
+// localizer's step events (its instance name as their `detector`) against truth_steps.csv (docs/eval.md).
 #include "locus/eval/metric.hpp"
 
 #include <algorithm>
@@ -60,6 +61,8 @@ void los_split(GroupContext& g, std::vector<double> sorted) {
 
 void score(GroupContext& g) {
   los_split(g, score_positions(g, /*final_only=*/false));
+  // The localizer's own step events (stride calibrated by ranging), not the steps detector's.
+  if (!g.scored().empty()) score_strides(g, g.scored().front().e->plugin);
 }
 
 }  // namespace

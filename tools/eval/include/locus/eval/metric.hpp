@@ -109,4 +109,10 @@ class GroupContext {
 /// Returns every position error (for metrics that split them further).
 std::vector<double> score_positions(GroupContext& g, bool final_only, bool path_pct = false);
 
+/// Stride error: step events (of `detector` only, when given) matched to truth_steps.csv in true
+/// time (nearest unused true step within options().step_match_tolerance_s); summary steps_true /
+/// detected / matched / missed / extra and the mean, median, p90 and max stride error; a warning
+/// (and a null mean) when the scene has no truth_steps.csv. Montage and SpyLoc use it.
+void score_strides(GroupContext& g, std::string_view detector = {});
+
 }  // namespace locus::eval
