@@ -3,6 +3,7 @@
 #include <httplib.h>
 
 #include <arpa/inet.h>
+#include <sys/socket.h>
 #include <ctime>
 
 #include <chrono>
@@ -139,7 +140,13 @@ MapServer::MapServer(MapOptions options, Logger& log)
   http_->set_read_timeout(rs, rus);
   http_->set_write_timeout(ws, wus);
   http_->set_keep_alive_timeout(std::max<time_t>(1, rs));
-  http_->set_payload_max_length(64 * 1024);  // no route takes a body; a large one is refused (413)
+  http_->set_payload_max_length(64 * 1024);
+  // SO_REUSEADDR only: cpp-httplib's default also sets SO_REUSEPORT, with which a second locusd would
+  // silently share the port instead of failing.
+  http_->set_socket_options([](int sock) {
+    int yes = 1;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });  // no route takes a body; a large one is refused (413)
   routes();
   if (opt_.port == 0) {
     port_ = http_->bind_to_any_port(opt_.host);
