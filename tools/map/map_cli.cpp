@@ -81,7 +81,7 @@ app::PipelineHooks map_hooks(MapServer& map, const std::string& what) {
 void linger(MapServer& map, Logger& log) {
   const double s = map.options().linger_s;
   if (s <= 0.0) return;
-  log.info("map: still serving " + map.url() + " for " + std::to_string(static_cast<int>(s)) +
+  log.info("still serving " + map.url() + " for " + std::to_string(static_cast<int>(s)) +
            " s (linger_s); SIGINT/SIGTERM ends it");
   sigset_t stop_signals;
   sigemptyset(&stop_signals);

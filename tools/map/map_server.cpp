@@ -160,7 +160,7 @@ MapServer::MapServer(MapOptions options, Logger& log)
     port_ = opt_.port;
   }
   if (!is_loopback(opt_.host)) {
-    log_.warn("map: listening on " + fmt_host_port(opt_.host, port_) +
+    log_.warn("listening on " + fmt_host_port(opt_.host, port_) +
               ", reachable from other machines; the map has no authentication (use 127.0.0.1 and an SSH tunnel or a "
               "reverse proxy with TLS and a password)");
   }
@@ -278,7 +278,7 @@ void MapServer::routes() {
       what = e.what();
     } catch (...) {
     }
-    log_.error("map: " + req.path + ": " + what);
+    log_.error(req.path + ": " + what);
     res.status = 500;
     res.set_content("internal error\n", "text/plain");
   });
@@ -289,7 +289,7 @@ void MapServer::start() {
   started_ = true;
   pump_thread_ = std::thread([this] { pump(); });
   http_thread_ = std::thread([this] { http_->listen_after_bind(); });
-  log_.info("map: " + url());
+  log_.info(url());
 }
 
 void MapServer::stop() {

@@ -118,21 +118,8 @@ def main():
         scene = os.path.join(tmp, "scene")
         subprocess.run([os.path.join(args.bin, "locus"), "simulate", "amil", scene, "--seed", args.seed],
                        check=True, stdout=subprocess.DEVNULL)
-        estimates_path = os.path.join(tmp, "estimates.jsonl")
-        locusd = subprocess.Popen(
-            [os.path.join(args.bin, "locusd"), "--config", os.path.join(args.source, "config/amil.yaml"), "--scene",
-             scene, "--speed", "realtime", "--http", "127.0.0.1:0", "--http-param", "linger_s=120", "-o",
-             estimates_path],
-            stdout=subprocess.PIPE, stderr=open(os.path.join(args.out, "locusd.log"), "w"), text=True,
-            start_new_session=True)
-        line = locusd.stdout.readline().strip()
-        check(line.startswith("map: http://127.0.0.1:"), f"locusd prints the map's URL ({line!r})")
-        if failures:
-            return 1
-        url = line.split(" ", 1)[1]
-        t_started = time.monotonic()
-
-        # Chromium with the DevTools protocol on fds 3 (commands in) and 4 (replies out).
+        # Chromium with the DevTools protocol on fds 3 (commands in) and 4 (replies out), started and
+        # given its page before locusd, so that a slow browser start cannot miss the replay.
         to_chrome_r, to_chrome_w = os.pipe()
         from_chrome_r, from_chrome_w = os.pipe()
         profile = os.path.join(tmp, "profile")
@@ -150,6 +137,20 @@ def main():
         cdp.call("Page.enable", session=session)
         cdp.call("Emulation.setDeviceMetricsOverride",
                  {"width": 1280, "height": 800, "deviceScaleFactor": 1, "mobile": False}, session)
+        estimates_path = os.path.join(tmp, "estimates.jsonl")
+        locusd = subprocess.Popen(
+            [os.path.join(args.bin, "locusd"), "--config", os.path.join(args.source, "config/amil.yaml"), "--scene",
+             scene, "--speed", "realtime", "--http", "127.0.0.1:0", "--http-param", "linger_s=120", "-o",
+             estimates_path],
+            stdout=subprocess.PIPE, stderr=open(os.path.join(args.out, "locusd.log"), "w"), text=True,
+            start_new_session=True)
+        line = locusd.stdout.readline().strip()
+        check(line.startswith("map: http://127.0.0.1:"), f"locusd prints the map's URL ({line!r})")
+        if failures:
+            return 1
+        url = line.split(" ", 1)[1]
+        t_started = time.monotonic()
+
         cdp.call("Page.navigate", {"url": url}, session)
 
         # The page is up (state loaded, stream open) during the replay, before any estimate exists.

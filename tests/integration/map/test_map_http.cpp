@@ -73,8 +73,8 @@ class RawClient {
     }
     return true;
   }
-  /// Everything until the server closes or `limit` passes.
-  std::string read_until_closed(std::chrono::milliseconds limit) {
+  /// Everything until the server closes or `limit` passes (or, with `head_only`, the response head is in).
+  std::string read_until_closed(std::chrono::milliseconds limit, bool head_only = false) {
     std::string out;
     const auto end = std::chrono::steady_clock::now() + limit;
     for (;;) {
@@ -89,6 +89,7 @@ class RawClient {
         break;
       }
       out.append(buf, static_cast<std::size_t>(n));
+      if (head_only && out.find("\r\n\r\n") != std::string::npos) break;
     }
     return out;
   }
@@ -186,21 +187,21 @@ TEST(MapHttp, HugeHeadersAndLongUrisGetACleanErrorAndTheServerGoesOn) {
     RawClient raw(map.port());
     ASSERT_TRUE(raw.connected());
     raw.send_all("GET / HTTP/1.1\r\nHost: x\r\nX-Big: " + std::string(100000, 'a') + "\r\n\r\n");
-    const std::string reply = raw.read_until_closed(20s);
+    const std::string reply = raw.read_until_closed(20s, true);
     EXPECT_TRUE(reply.rfind("HTTP/1.1 400", 0) == 0 || reply.rfind("HTTP/1.1 431", 0) == 0) << reply.substr(0, 200);
   }
   {
     RawClient raw(map.port());
     ASSERT_TRUE(raw.connected());
     raw.send_all("GET /" + std::string(20000, 'a') + " HTTP/1.1\r\nHost: x\r\n\r\n");
-    const std::string reply = raw.read_until_closed(20s);
+    const std::string reply = raw.read_until_closed(20s, true);
     EXPECT_EQ(reply.rfind("HTTP/1.1 414", 0), 0u) << reply.substr(0, 200);
   }
   {
     RawClient raw(map.port());
     ASSERT_TRUE(raw.connected());
     raw.send_all("BREW / HTTP/1.1\r\nHost: x\r\n\r\n");
-    const std::string reply = raw.read_until_closed(20s);
+    const std::string reply = raw.read_until_closed(20s, true);
     EXPECT_EQ(reply.rfind("HTTP/1.1 400", 0), 0u) << reply.substr(0, 200);
   }
   httplib::Client c("127.0.0.1", map.port());
@@ -253,8 +254,8 @@ TEST(MapHttp, AStreamThatIsNotReadNeverHoldsUpTheTapsOrOtherStreams) {
       return !done.load();
     });
   });
-  // ~20 MB of estimates through the tap: far more than the stalled socket's buffers hold.
-  constexpr int kEvents = 40000;
+  // ~8 MB of estimates through the tap: more than the stalled socket's buffers hold.
+  constexpr int kEvents = 25000;
   int pushed = 0;
   for (int i = 0; i < kEvents; ++i) {
     char name[16];
@@ -269,11 +270,10 @@ TEST(MapHttp, AStreamThatIsNotReadNeverHoldsUpTheTapsOrOtherStreams) {
   EXPECT_EQ(pushed, kEvents);
   EXPECT_GE(received.load(), kEvents) << "the reading client missed events while another one stalled";
   // The stalled one is dropped by write_timeout_s (its socket buffers are full): no stream is left
-  // open. (Reading it before would make it a reader: so wait for the server's count first.)
+  // open on the server. (Its socket then sits in FIN-WAIT-1 behind megabytes of unsent data that the
+  // client's 1 KiB window would take minutes to drain, so the count is what is checked.)
   for (int i = 0; i < 600 && map.stats().clients_now > 0; ++i) std::this_thread::sleep_for(100ms);
   EXPECT_EQ(map.stats().clients_now, 0u) << "a client that does not read was kept";
-  stalled.read_until_closed(60s);
-  EXPECT_TRUE(stalled.closed());
   EXPECT_EQ(map.stats().tap_dropped, 0u);
 }
 
