@@ -3,7 +3,7 @@
 
 Replays a scene through `locusd --scene ... --speed realtime`, once without the map and once with
 `--http` and the page open in headless Chromium plus an SSE client of our own, and reports:
-  - latency: for every estimate, the time from its hand-over to the map (`mono_ns` in the stream, the
+  - latency: for every estimate (and every audio detection, more samples of the same path), the time from its hand-over to the map (`mono_ns` in the stream, the
     CLOCK_MONOTONIC time the pipeline's dispatcher handed it over, i.e. when the localizer published it)
     to its arrival at this script's SSE client (time.monotonic_ns(), same clock, same machine);
   - locusd's CPU time (user + system, % of one core over the replay's wall time) and its peak RSS
@@ -75,8 +75,7 @@ def sse_client(host, port, latencies, stop):
         elif line == "":
             if event == "locus" and data:
                 msg = json.loads(data)
-                if msg["event"]["type"] == "estimate":
-                    latencies.append((now - msg["mono_ns"]) / 1e6)
+                latencies.append((msg["event"]["type"], (now - msg["mono_ns"]) / 1e6))
             event, data = None, None
 
 
@@ -145,7 +144,8 @@ def main():
                         f"gestures={args.gestures}"], check=True, stdout=subprocess.DEVNULL)
         base = run(args, scene, False, tmp)
         mapped = run(args, scene, True, tmp)
-        lat = sorted(mapped[3])
+        lat = sorted(ms for t, ms in mapped[3] if t == "estimate")
+        det = sorted(ms for t, ms in mapped[3] if t == "audio_detection")
         print(f"scene: locus simulate amil --seed {args.seed} -o gestures={args.gestures}; replay at realtime")
         print(f"without the map: wall {base[0]:.1f} s, locusd CPU {base[1]:.2f} s = {100 * base[1] / base[0]:.1f} % "
               f"of one core, peak RSS {base[2]:.0f} MB")
@@ -154,6 +154,9 @@ def main():
         if lat:
             print(f"estimate published -> SSE client: {len(lat)} estimates, median {statistics.median(lat):.2f} ms, "
                   f"max {lat[-1]:.2f} ms")
+            if det:
+                print(f"audio detection published -> SSE client: {len(det)} detections, median "
+                      f"{statistics.median(det):.2f} ms, max {det[-1]:.2f} ms")
         else:
             print("no estimate reached the SSE client")
             return 1
