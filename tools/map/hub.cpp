@@ -85,9 +85,10 @@ int run_hub(MapServer& map, const std::vector<std::string>& hub_params, Logger& 
     }
     if (levels.size() != prefix_levels + 3) return;  // .../estimate/<target>/state and others
     const std::string& node = levels[prefix_levels];
+    if (node == "link") return;  // <topic_prefix>/link/...: the localizers' own messages, not events
     nlohmann::ordered_json event = nlohmann::ordered_json::parse(payload, nullptr, /*allow_exceptions=*/false);
     if (event.is_discarded() || !event.is_object()) {
-      log.warn("hub: " + topic + ": not a JSON object: ignored");
+      log.debug("hub: " + topic + ": not a JSON object: ignored");
       return;
     }
     map.post_json(node, event, now);

@@ -391,6 +391,7 @@ TEST(MapHub, ShowsEveryNodesEstimatesAndStatusFromMqtt) {
               "\"distance_m\":null,\"std_m\":0.05,\"confidence\":0.9,\"flags\":[]}'"));
     ASSERT_TRUE(testing::run_command(pub + "-t locus/hall/estimate/T1/state -m '{\"x\":1}'"));  // HA state: not an event
     ASSERT_TRUE(testing::run_command(pub + "-t locus/hall/estimate/T2 -m 'not json'"));
+    ASSERT_TRUE(testing::run_command(pub + "-t locus/link/amil/x -m '{\"type\":\"estimate\",\"target\":\"Z\"}'"));
     auto r = c.Get("/api/state");
     if (r && r->status == 200) {
       state = nlohmann::json::parse(r->body);
