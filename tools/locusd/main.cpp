@@ -63,6 +63,7 @@ int main(int argc, char** argv) {
 #if LOCUS_HAVE_HTTP
   std::unique_ptr<locus::map::MapServer> map;
   std::optional<locus::SpdLogger> map_log;
+  bool interrupted = false;
   if (http.hub && !http.listen) {
     std::cerr << "locusd: --hub serves a map: give --http [HOST:]PORT\n";
     return locus::app::kExitBadConfig;
@@ -102,11 +103,16 @@ int main(int argc, char** argv) {
       return status;
     }
     opts.hooks = locus::map::map_hooks(*map, scene ? "replay of " + *scene : "node " + opts.config_path);
+    // A run stopped by SIGINT/SIGTERM does not linger: the signal meant "stop".
+    opts.hooks.ended = [ended = opts.hooks.ended, &interrupted](bool stopped) {
+      interrupted = stopped;
+      ended(stopped);
+    };
     map->set_status(scene ? "replaying " + *scene : "running " + opts.config_path, false);
   }
   const auto finish = [&](int status) {
     if (map) {
-      locus::map::linger(*map, *map_log);
+      if (!interrupted) locus::map::linger(*map, *map_log);
       map->stop();
     }
     return status;
