@@ -19,6 +19,9 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
+#include <fstream>
+#include <map>
+#include <sstream>
 #include <ctime>
 #include <string>
 #include <thread>
@@ -342,43 +345,63 @@ TEST(MapHttp, LatencyFromTapToStreamClient) {
               ms[kN / 2], ms[kN * 99 / 100], ms.back());
 }
 
+/// `locusd --hub --http 127.0.0.1:0` against `broker_port`, killed (SIGKILL) when destroyed unless
+/// stopped; port() is the map's port from its "map: URL" line.
+class HubProcess {
+ public:
+  explicit HubProcess(int broker_port) {
+    int out[2];
+    if (::pipe(out) != 0) throw std::runtime_error("pipe");
+    pid_ = ::fork();
+    if (pid_ < 0) throw std::runtime_error("fork");
+    if (pid_ == 0) {
+      ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+      ::dup2(out[1], 1);
+      ::close(out[0]);
+      const std::string port = "port=" + std::to_string(broker_port);
+      ::execl(LOCUSD_PATH, LOCUSD_PATH, "--hub", "--http", "127.0.0.1:0", "--hub-param", port.c_str(), "--log-level",
+              "warn", static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    ::close(out[1]);
+    char ch;
+    while (::read(out[0], &ch, 1) == 1 && ch != '\n') line_ += ch;
+    ::close(out[0]);
+    const std::string prefix = "map: http://127.0.0.1:";
+    if (line_.rfind(prefix, 0) == 0) port_ = std::stoi(line_.substr(prefix.size()));
+  }
+  ~HubProcess() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+  }
+  /// SIGTERM, then the exit status (as waitpid gives it).
+  int stop() {
+    ::kill(pid_, SIGTERM);
+    int status = 0;
+    ::waitpid(pid_, &status, 0);
+    pid_ = 0;
+    return status;
+  }
+  int port() const { return port_; }
+  const std::string& line() const { return line_; }
+
+ private:
+  pid_t pid_ = 0;
+  int port_ = 0;
+  std::string line_;
+};
+
 // Hub mode as a user runs it: a real `locusd --hub` subscribed to a real mosquitto; a node's MQTT
 // output is played by mosquitto_pub with exactly its topics and payloads (docs/mqtt.md).
 TEST(MapHub, ShowsEveryNodesEstimatesAndStatusFromMqtt) {
   testing::TempDir dir;
   testing::Broker broker(dir.path(), {});
   broker.start();
-  // locusd --hub on a free port: it prints "map: URL" on stdout.
-  int out[2];
-  ASSERT_EQ(::pipe(out), 0);
-  const pid_t pid = ::fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
-    ::dup2(out[1], 1);
-    ::close(out[0]);
-    const std::string port = "port=" + std::to_string(broker.port());
-    ::execl(LOCUSD_PATH, LOCUSD_PATH, "--hub", "--http", "127.0.0.1:0", "--hub-param", port.c_str(), "--log-level",
-            "warn", static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  ::close(out[1]);
-  struct Reap {
-    pid_t pid;
-    ~Reap() {
-      if (pid > 0) {
-        ::kill(pid, SIGKILL);
-        ::waitpid(pid, nullptr, 0);
-      }
-    }
-  } reap{pid};
-  std::string line;
-  char ch;
-  while (::read(out[0], &ch, 1) == 1 && ch != '\n') line += ch;
-  ::close(out[0]);
-  ASSERT_EQ(line.rfind("map: http://127.0.0.1:", 0), 0u) << line;
-  const int port = std::stoi(line.substr(std::string("map: http://127.0.0.1:").size()));
-
+  HubProcess hub(broker.port());
+  ASSERT_GT(hub.port(), 0) << hub.line();
+  const int port = hub.port();
   const std::string pub = "mosquitto_pub -h 127.0.0.1 -p " + std::to_string(broker.port()) + " ";
   httplib::Client c("127.0.0.1", port);
   nlohmann::json state;
@@ -415,10 +438,65 @@ TEST(MapHub, ShowsEveryNodesEstimatesAndStatusFromMqtt) {
   }
   EXPECT_TRUE(offline);
   // SIGTERM: a clean exit.
-  ::kill(pid, SIGTERM);
-  int status = 0;
-  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
-  reap.pid = 0;
+  const int status = hub.stop();
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
+}
+
+// The whole chain with real nodes: a replay of the AMIL field test whose 13 nodes publish through their
+// MQTT event output (docs/mqtt.md) to a real mosquitto, and a real `locusd --hub` that draws them: the
+// hub's map holds exactly the estimates the nodes wrote to their JSON-lines output.
+TEST(MapHub, DrawsTheEstimatesOfRealNodesPublishingOverMqtt) {
+  testing::TempDir dir;
+  testing::Broker broker(dir.path(), {});
+  broker.start();
+  HubProcess hub(broker.port());
+  ASSERT_GT(hub.port(), 0) << hub.line();
+  const std::string scene = (dir.path() / "scene").string();
+  ASSERT_TRUE(testing::run_command(std::string(LOCUS_PATH) + " simulate amil '" + scene + "' --seed 1 >/dev/null"));
+  // config/amil.yaml plus an MQTT output of estimates and detections (node name "site-a").
+  std::ifstream in(LOCUS_SOURCE_DIR "/config/amil.yaml");
+  std::stringstream cfg;
+  cfg << in.rdbuf() << "\noutputs:\n  - type: mqtt\n    events: [estimate, audio_detection]\n    params: {port: "
+      << broker.port() << ", node: site-a, discovery_prefix: \"\"}\n";
+  const std::string config = (dir.path() / "amil-mqtt.yaml").string();
+  std::ofstream(config) << cfg.str();
+  const std::string out = (dir.path() / "estimates.jsonl").string();
+  ASSERT_TRUE(testing::run_command(std::string(LOCUSD_PATH) + " --config '" + config + "' --scene '" + scene +
+                                   "' --speed max -o '" + out + "' 2>" + (dir.path() / "node.log").string()));
+  std::map<std::string, nlohmann::json> written;  // target -> [position_m, direction_rad, std_m, flags]
+  const auto what = [](const nlohmann::json& e) {
+    return nlohmann::json::array({e["position_m"], e["direction_rad"], e["std_m"], e["flags"]});
+  };
+  std::ifstream lines(out);
+  for (std::string line; std::getline(lines, line);) {
+    const auto e = nlohmann::json::parse(line);
+    if (e["type"] == "estimate") written[e["target"]] = what(e);
+  }
+  ASSERT_EQ(written.size(), 12u);
+  httplib::Client c("127.0.0.1", hub.port());
+  nlohmann::json state;
+  for (int i = 0; i < 200; ++i) {
+    state = nlohmann::json::parse(c.Get("/api/state")->body);
+    if (state["tracks"].size() >= written.size()) break;
+    std::this_thread::sleep_for(50ms);
+  }
+  ASSERT_EQ(state["tracks"].size(), written.size()) << state.dump().substr(0, 2000);
+  for (const auto& t : state["tracks"]) {
+    EXPECT_EQ(t["node"], "site-a");
+    const auto& e = t["estimate"];
+    const auto it = written.find(e["target"].get<std::string>());
+    ASSERT_NE(it, written.end()) << e.dump();
+    EXPECT_EQ(what(e), it->second) << e.dump();
+  }
+  // Detections came too (the SNR column), and the node's status (its output's `offline` at the end).
+  bool snr = false, offline = false;
+  for (const auto& d : state["devices"]) {
+    snr |= d["last_snr_db"].is_number();
+    offline |= d["link"] == "offline";
+  }
+  EXPECT_TRUE(snr) << state["devices"].dump();
+  EXPECT_TRUE(offline) << state["devices"].dump();
+  const int status = hub.stop();
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
 }
 
