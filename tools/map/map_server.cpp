@@ -184,7 +184,34 @@ void MapServer::attach(const std::string& node, Pipeline& pipeline) {
   for (const DeviceStats& s : pipeline.live_stats()) state_.add_device(node, s.id);
 }
 
+namespace {
+
+/// The host name of a Host header ("127.0.0.1:8080" -> "127.0.0.1", "[::1]:80" -> "::1").
+std::string host_name(const std::string& header) {
+  if (!header.empty() && header.front() == '[') {
+    const auto close = header.find(']');
+    return close == std::string::npos ? header : header.substr(1, close - 1);
+  }
+  const auto colon = header.find(':');
+  return colon == std::string::npos ? header : header.substr(0, colon);
+}
+
+}  // namespace
+
 void MapServer::routes() {
+  // DNS rebinding: a web page from elsewhere could point its own host name at 127.0.0.1 and read the
+  // map through the visitor's browser. A map bound to loopback therefore answers only requests whose
+  // Host names a loopback address or localhost (any port: SSH tunnels change it).
+  if (is_loopback(opt_.host)) {
+    http_->set_pre_routing_handler([](const httplib::Request& req, httplib::Response& res) {
+      const std::string host = host_name(req.get_header_value("Host"));
+      if (is_loopback(host)) return httplib::Server::HandlerResponse::Unhandled;
+      res.status = 403;
+      res.set_content("forbidden: Host '" + host + "' is not a loopback address (the map listens on loopback only)\n",
+                      "text/plain");
+      return httplib::Server::HandlerResponse::Handled;
+    });
+  }
   for (std::size_t i = 0; i < kAssetCount; ++i) {
     const Asset& a = kAssets[i];
     const std::string path = a.path == "index.html" ? "/" : "/" + std::string(a.path);

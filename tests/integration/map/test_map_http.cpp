@@ -182,6 +182,24 @@ TEST(MapHttp, UnknownPathsGet404WithABody) {
   EXPECT_EQ(post->status, 404);
 }
 
+TEST(MapHttp, ALoopbackMapRefusesOtherHostNames) {
+  // DNS rebinding: a request whose Host is not a loopback name is refused (403); loopback names on
+  // any port (an SSH tunnel's) are served.
+  QuietLog log;
+  MapServer map(options(), log);
+  map.start();
+  for (const auto& [host, code] : std::vector<std::pair<std::string, int>>{
+           {"evil.example:" + std::to_string(map.port()), 403}, {"10.0.0.1", 403}, {"", 403},
+           {"127.0.0.1:9000", 200}, {"localhost:9000", 200}, {"[::1]:9000", 200}}) {
+    RawClient raw(map.port());
+    ASSERT_TRUE(raw.connected());
+    raw.send_all("GET /api/state HTTP/1.1\r\n" + (host.empty() ? std::string() : "Host: " + host + "\r\n") +
+                 "Connection: close\r\n\r\n");
+    const std::string reply = raw.read_until_closed(20s, true);
+    EXPECT_EQ(reply.rfind("HTTP/1.1 " + std::to_string(code), 0), 0u) << host << ": " << reply.substr(0, 100);
+  }
+}
+
 TEST(MapHttp, HugeHeadersAndLongUrisGetACleanErrorAndTheServerGoesOn) {
   QuietLog log;
   MapServer map(options(), log);
@@ -189,21 +207,21 @@ TEST(MapHttp, HugeHeadersAndLongUrisGetACleanErrorAndTheServerGoesOn) {
   {
     RawClient raw(map.port());
     ASSERT_TRUE(raw.connected());
-    raw.send_all("GET / HTTP/1.1\r\nHost: x\r\nX-Big: " + std::string(100000, 'a') + "\r\n\r\n");
+    raw.send_all("GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Big: " + std::string(100000, 'a') + "\r\n\r\n");
     const std::string reply = raw.read_until_closed(20s, true);
     EXPECT_TRUE(reply.rfind("HTTP/1.1 400", 0) == 0 || reply.rfind("HTTP/1.1 431", 0) == 0) << reply.substr(0, 200);
   }
   {
     RawClient raw(map.port());
     ASSERT_TRUE(raw.connected());
-    raw.send_all("GET /" + std::string(20000, 'a') + " HTTP/1.1\r\nHost: x\r\n\r\n");
+    raw.send_all("GET /" + std::string(20000, 'a') + " HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
     const std::string reply = raw.read_until_closed(20s, true);
     EXPECT_EQ(reply.rfind("HTTP/1.1 414", 0), 0u) << reply.substr(0, 200);
   }
   {
     RawClient raw(map.port());
     ASSERT_TRUE(raw.connected());
-    raw.send_all("BREW / HTTP/1.1\r\nHost: x\r\n\r\n");
+    raw.send_all("BREW / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
     const std::string reply = raw.read_until_closed(20s, true);
     EXPECT_EQ(reply.rfind("HTTP/1.1 400", 0), 0u) << reply.substr(0, 200);
   }
@@ -239,7 +257,7 @@ TEST(MapHttp, AStreamThatIsNotReadNeverHoldsUpTheTapsOrOtherStreams) {
   ASSERT_TRUE(stalled.connected());
   int small = 1024;
   ::setsockopt(stalled.fd(), SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
-  ASSERT_TRUE(stalled.send_all("GET /events HTTP/1.1\r\nHost: x\r\n\r\n"));
+  ASSERT_TRUE(stalled.send_all("GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
   // A reader that counts what it gets.
   std::atomic<int> received{0};
   std::atomic<bool> done{false};
@@ -287,7 +305,7 @@ TEST(MapHttp, StreamsBeyondMaxClientsGet503) {
   std::vector<std::unique_ptr<RawClient>> open;
   for (int i = 0; i < 2; ++i) {
     open.push_back(std::make_unique<RawClient>(map.port()));
-    ASSERT_TRUE(open.back()->send_all("GET /events HTTP/1.1\r\nHost: x\r\n\r\n"));
+    ASSERT_TRUE(open.back()->send_all("GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
     const std::string head = open.back()->read_until_closed(1500ms);
     EXPECT_EQ(head.rfind("HTTP/1.1 200", 0), 0u) << head;
   }
