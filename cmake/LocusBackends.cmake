@@ -1,11 +1,12 @@
-# Optional backends: LOCUS_WITH_<X> for JACK, ALSA, BLUEZ (sdbus-c++) and MQTT (libmosquitto).
+# Optional backends: LOCUS_WITH_<X> for JACK, ALSA, BLUEZ (sdbus-c++), MQTT (libmosquitto) and HTTP
+# (cpp-httplib: the live map of locusd --http).
 #
 # Why: a board may lack some of these libraries (no JACK server, no BlueZ), and the rest of Locus does
 # not need them. Like PipeWire's SPA, each backend is built when its dependency is there:
 #   AUTO (default)  build it when pkg-config finds the library, skip it quietly otherwise;
 #   ON              required: configuring fails with a message naming the library and its Debian package;
 #   OFF             never built, even when the library is installed.
-# The `default` preset (what ./run and CI build) sets all four ON, so CI cannot lose a backend without
+# The `default` preset (what ./run and CI build) sets all of them ON, so CI cannot lose a backend without
 # failing; the `minimal` preset sets them OFF (CMakePresets.json).
 #
 # For each backend <X> this sets, in the caller's scope:
@@ -63,7 +64,7 @@ endfunction()
 # that ask which backends exist include it (hal/builtin.cpp, link/links.cpp, tools, tests), so
 # switching a backend rebuilds those alone.
 function(locus_write_build_options)
-  foreach(id JACK ALSA BLUEZ MQTT)
+  foreach(id JACK ALSA BLUEZ MQTT HTTP)
     if(LOCUS_HAVE_${id})
       set(LOCUS_HAVE_${id}_01 1)
       set(LOCUS_HAVE_${id}_BOOL true)

@@ -19,6 +19,8 @@ PACKAGES=(
   libsdbus-c++-dev libsystemd-dev libmosquitto-dev
   # HMAC-SHA256 of signed link messages (link/auth: OpenSSL's libcrypto)
   libssl-dev
+  # the live map's HTTP server (locusd --http, tools/map; LOCUS_WITH_HTTP)
+  libcpp-httplib-dev
   # well-kept libraries for what is not our business
   libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev libsndfile1-dev libboost-dev
   # tests and benchmarks; clang's libFuzzer for ./run fuzz (tests/fuzz)
@@ -27,6 +29,8 @@ PACKAGES=(
   dbus python3-dbusmock mosquitto mosquitto-clients sox
   # TLS certificates for the MQTT TLS test (tests/integration/mqtt)
   openssl
+  # the real browser of the live map's test (tests/integration/map: headless Chromium)
+  chromium
   # reference checks and plots (never runtime dependencies of the service)
   python3-numpy python3-scipy python3-matplotlib python3-yaml
   # packaging (./run package: cpack DEB, dpkg-shlibdeps from dpkg-dev) and its test
@@ -42,6 +46,7 @@ ARM64_PACKAGES=(
   crossbuild-essential-arm64 qemu-user-static
   libasound2-dev:arm64 libjack-jackd2-dev:arm64 libfftw3-dev:arm64 libyaml-cpp0.7:arm64
   libbluetooth-dev:arm64 libsdbus-c++-dev:arm64 libsystemd-dev:arm64 libmosquitto-dev:arm64 libssl-dev:arm64
+  libcpp-httplib-dev:arm64
   libspdlog-dev:arm64 libfmt-dev:arm64 libsndfile1-dev:arm64 libboost-dev:arm64
   libgtest-dev:arm64 libgmock-dev:arm64 libbenchmark-dev:arm64
 )

@@ -106,8 +106,9 @@ const char* kind_name(std::uint32_t kind) {
 
 }  // namespace
 
-void add_run_options(CLI::App& cmd, RunOptions& opts) {
-  cmd.add_option("-c,--config", opts.config_path, "node configuration (YAML), see docs/config.md")->required();
+void add_run_options(CLI::App& cmd, RunOptions& opts, bool config_required) {
+  auto* config = cmd.add_option("-c,--config", opts.config_path, "node configuration (YAML), see docs/config.md");
+  if (config_required) config->required();
   cmd.add_option("-o,--output", opts.output, "write JSON lines here instead of the config's output.path ('-' = stdout)");
   cmd.add_option("--log-level", opts.log_level, "trace|debug|info|warn|error (overrides the config)")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}));
@@ -141,10 +142,15 @@ int run_node(const RunOptions& opts) {
 
   try {
     Pipeline pipeline(config, registry);
+    std::string node = config.file;
+    if (const auto slash = node.rfind('/'); slash != std::string::npos) node = node.substr(slash + 1);
+    if (const auto dot = node.rfind('.'); dot != std::string::npos && dot > 0) node = node.substr(0, dot);
+    if (opts.hooks.built) opts.hooks.built(node, pipeline);
     pipeline.start();
     log->info("running {} ({} devices, {} localizers)", config.file, config.devices.size(), config.localizers.size());
     int signal_number = 0;
     while (!pipeline.finished()) {
+      if (opts.hooks.tick) opts.hooks.tick(node, pipeline);
       timespec timeout{0, 50'000'000};
       const int sig = sigtimedwait(&stop_signals, nullptr, &timeout);
       if (sig > 0) {
@@ -154,6 +160,8 @@ int run_node(const RunOptions& opts) {
     }
     if (signal_number) log->info("{} received: stopping", signal_number == SIGINT ? "SIGINT" : "SIGTERM");
     pipeline.stop();
+    if (opts.hooks.tick) opts.hooks.tick(node, pipeline);
+    if (opts.hooks.ended) opts.hooks.ended(signal_number != 0);
     for (const DeviceStats& s : pipeline.stats()) {
       if (!s.source_error.empty()) {
         log->error("device {}: {}", s.id, s.source_error);

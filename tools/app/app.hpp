@@ -4,6 +4,7 @@
 // Exit status: 0 success, 1 runtime failure, 2 bad config or usage, 3 a plugin library failed to load.
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -16,7 +17,23 @@ class App;
 
 #include "locus/host.hpp"
 
+namespace locus {
+class Pipeline;
+}  // namespace locus
+
 namespace locus::app {
+
+/// What an embedder (locusd's live map) gets to see of the pipelines a command runs; every hook is
+/// optional and runs on the main thread.
+struct PipelineHooks {
+  /// Each node's pipeline once built, before it starts (subscribe here). `node`: the node's name (the
+  /// scene device id in a replay, the config file's stem for a node).
+  std::function<void(const std::string& node, Pipeline& pipeline)> built;
+  /// About every 50 ms while the pipelines run, for each node (read live_stats() here).
+  std::function<void(const std::string& node, const Pipeline& pipeline)> tick;
+  /// Once, after everything was flushed (`interrupted`: stopped by SIGINT/SIGTERM).
+  std::function<void(bool interrupted)> ended;
+};
 
 inline constexpr int kExitOk = 0;
 inline constexpr int kExitFailure = 1;
@@ -27,13 +44,15 @@ struct RunOptions {
   std::string config_path;
   std::optional<std::string> output;  ///< overrides output.path
   std::optional<std::string> log_level;
+  PipelineHooks hooks;
 };
 
 /// "trace" | "debug" | "info" | "warn" | "error" -> LogLevel; false for anything else.
 bool parse_log_level(const std::string& s, LogLevel& out);
 
-/// Adds the options of RunOptions to a CLI11 (sub)command.
-void add_run_options(CLI::App& cmd, RunOptions& opts);
+/// Adds the options of RunOptions to a CLI11 (sub)command. `config_required` = false leaves the check
+/// of --config to the caller (locusd --hub runs without one).
+void add_run_options(CLI::App& cmd, RunOptions& opts, bool config_required = true);
 
 /// Runs a node from a config until its finite sources end or SIGINT/SIGTERM arrives; flushes all
 /// output before returning.

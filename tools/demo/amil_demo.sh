@@ -6,6 +6,12 @@
 # and distance) and draw the map (PNG) from the files Locus wrote.
 #
 #   tools/demo/amil_demo.sh BIN_DIR [--out DIR] [--seed N] [--difficulty easy|normal|hard] [--gestures 1|3] [--speed realtime|max]
+#                           [--map [HOST:]PORT] [--map-linger S]
+#
+# The live map: when locusd was built with it (LOCUS_WITH_HTTP), the replay also serves the map
+# (locusd --http, docs/map.md) on 127.0.0.1 and a free port (--map sets one; --map off turns it off),
+# and the demo prints its URL while the replay runs; --map-linger S keeps it open S seconds after the
+# replay (Ctrl-C ends it early).
 #
 # Files in DIR (default: a fresh temporary directory, printed): scene/ (the simulated scene),
 # amil.yaml (config/amil.yaml plus the player's track file), estimates.jsonl (what locusd published),
@@ -16,7 +22,7 @@ here="$(cd "$(dirname "$0")" && pwd)"
 root="$(cd "$here/../.." && pwd)"
 bin="${1:?usage: amil_demo.sh BIN_DIR [--out DIR] [--seed N] [--difficulty D] [--gestures 1|3] [--speed S]}"
 shift
-out="" seed=1 difficulty=normal gestures=1 speed=realtime
+out="" seed=1 difficulty=normal gestures=1 speed=realtime map="127.0.0.1:0" map_linger=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --out) out="$2"; shift 2 ;;
@@ -24,6 +30,8 @@ while [ $# -gt 0 ]; do
     --difficulty) difficulty="$2"; shift 2 ;;
     --gestures) gestures="$2"; shift 2 ;;
     --speed) speed="$2"; shift 2 ;;
+    --map) map="$2"; shift 2 ;;
+    --map-linger) map_linger="$2"; shift 2 ;;
     *) echo "amil_demo.sh: unknown option '$1'" >&2; exit 2 ;;
   esac
 done
@@ -42,8 +50,14 @@ echo "== 1/4 simulate: AMIL field test (seed $seed, $difficulty, $gestures gestu
 sed "s|^\(\s*\)method: robust.*|&\n\1track_csv: \"$out/track.csv\"|" "$root/config/amil.yaml" > "$out/amil.yaml"
 grep -q track_csv "$out/amil.yaml" || { echo "amil_demo.sh: could not add track_csv to the config" >&2; exit 1; }
 
-echo "== 2/4 locusd --config config/amil.yaml --scene $out/scene --speed $speed"
-"$bin/locusd" --config "$out/amil.yaml" --scene "$out/scene" --speed "$speed" -o "$out/estimates.jsonl"
+map_args=()
+if [ "$map" != off ] && "$bin/locus" version | grep -q '^  http .*built in'; then
+  map_args=(--http "$map" --http-param "linger_s=$map_linger" --http-param "title=AMIL demo (seed $seed)")
+fi
+echo "== 2/4 locusd --config config/amil.yaml --scene $out/scene --speed $speed ${map_args[*]:0:2}"
+# locusd prints "map: URL" on stdout as soon as the map serves (the estimates go to the file).
+"$bin/locusd" --config "$out/amil.yaml" --scene "$out/scene" --speed "$speed" -o "$out/estimates.jsonl" "${map_args[@]}" \
+  | sed -u 's|^map: |   live map (open it now): |'
 
 echo "== 3/4 locus eval --metric amil"
 status=0

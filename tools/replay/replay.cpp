@@ -221,6 +221,7 @@ int run_replay(const ReplayOptions& opts) {
           w->write(e);
         });
       }
+      if (opts.hooks.built) opts.hooks.built(spec.id, *p);
       nodes.push_back(std::move(p));
       node_ids.push_back(spec.id);
     }
@@ -243,6 +244,9 @@ int run_replay(const ReplayOptions& opts) {
     bool all = true;
     for (const auto& p : nodes) all = all && p->finished();
     if (all) break;
+    if (opts.hooks.tick) {
+      for (std::size_t i = 0; i < nodes.size(); ++i) opts.hooks.tick(node_ids[i], *nodes[i]);
+    }
     timespec timeout{0, 20'000'000};
     const int sig = sigtimedwait(&stop_signals, nullptr, &timeout);
     if (sig > 0) {
@@ -282,6 +286,10 @@ int run_replay(const ReplayOptions& opts) {
     std::lock_guard lock(writer_mutex);
     writer->flush();
   }
+  if (opts.hooks.tick) {
+    for (std::size_t i = 0; i < nodes.size(); ++i) opts.hooks.tick(node_ids[i], *nodes[i]);
+  }
+  if (opts.hooks.ended) opts.hooks.ended(signal_number != 0);
   nodes.clear();  // unsubscribes nothing on the link by itself: no message is in flight any more
   return status;
 }

@@ -21,6 +21,8 @@
 #include <optional>
 #include <string>
 
+#include "app.hpp"
+
 namespace locus::app {
 
 struct ReplayOptions {
@@ -30,6 +32,7 @@ struct ReplayOptions {
   std::optional<std::string> output;         ///< JSON lines path ("-" = stdout); default: config output.path
   std::optional<std::string> events;         ///< comma-separated event type names; default: estimate
   std::optional<std::string> log_level;
+  PipelineHooks hooks;                       ///< the live map of locusd --scene --http
 };
 
 /// Runs the replay. Exit status: 0 success; 2 a bad scene, config or option (nothing ran, every error

@@ -237,7 +237,16 @@ class Pipeline {
   void flush();
 
   std::vector<DeviceStats> stats() const;
+  /// [any, while running] The counters of stats() that other threads may read while the pipeline runs
+  /// (atomics only: frames_lost, overruns, events_dropped, playback_xruns, sensor_dropped,
+  /// has_playback; the rest stays 0/empty). The live map polls it from the main thread.
+  std::vector<DeviceStats> live_stats() const;
   std::uint64_t events_delivered(EventType type) const noexcept { return bus_.delivered(type); }
+  /// The config the pipeline was built from.
+  const Config& config() const noexcept { return config_; }
+  /// How its localizers reach other nodes: "in-process" (own or shared in-process link) or the
+  /// config's link type ("mqtt").
+  std::string link_kind() const { return options_.link == nullptr && config_.link ? config_.link->type : "in-process"; }
 
  private:
   using Device = pipeline_steps::Device;

@@ -413,6 +413,27 @@ void Pipeline::stop() {
   flush();
 }
 
+std::vector<DeviceStats> Pipeline::live_stats() const {
+  std::vector<DeviceStats> out;
+  out.reserve(devices_.size());
+  for (const auto& dev : devices_) {
+    DeviceStats s;
+    s.id = dev->id;
+    if (dev->ring) {
+      s.frames_lost = dev->ring->frames_lost();
+      s.overruns = dev->ring->overruns();
+    }
+    if (dev->queue) s.events_dropped = dev->queue->dropped();
+    if (dev->sink) {
+      s.has_playback = true;
+      s.playback_xruns = dev->sink->xruns();
+    }
+    for (const auto& sensor : dev->sensors) s.sensor_dropped += sensor.queue->dropped();
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
 std::vector<DeviceStats> Pipeline::stats() const {
   std::vector<DeviceStats> out;
   for (const auto& dev : devices_) {

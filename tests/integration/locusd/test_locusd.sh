@@ -91,5 +91,48 @@ for sig in TERM INT; do
   python3 -c "import json,sys; [json.loads(l) for l in open(sys.argv[1])]" "$tmp/long-$sig.jsonl" && ok "SIG$sig: output complete" || fail "SIG$sig: truncated output"
 done
 
+# 4. The live map's command line (docs/map.md): bad addresses and parameters exit 2 naming the problem,
+#    before anything runs; a node with --http prints the map's URL on stdout and serves it while it runs.
+if "$bin/locus" version | grep -q '^  http .*built in'; then
+  check_usage() {  # check_usage "what" "expected stderr text" locusd-args...
+    local what="$1" want="$2"; shift 2
+    "$bin/locusd" "$@" > "$tmp/map.out" 2> "$tmp/map.err"; local s=$?
+    if [ $s -eq 2 ] && grep -qF -- "$want" "$tmp/map.err" && [ ! -s "$tmp/map.out" ]; then ok "$what: exit 2, '$want'"
+    else fail "$what: exit $s"; cat "$tmp/map.err"; fi
+  }
+  check_usage "port out of range" "the port must be a number in [0, 65535]" --config "$tmp/fast.yaml" --http 99999
+  check_usage "host name instead of an address" "is not an IP address" --config "$tmp/fast.yaml" --http example.org:80
+  check_usage "unknown map parameter" "--http-param bogus: unknown key" --config "$tmp/fast.yaml" --http 0 --http-param bogus=1
+  check_usage "map parameter out of range" "--http-param max_clients" --config "$tmp/fast.yaml" --http 0 --http-param max_clients=0
+  check_usage "unknown event type" "unknown event type 'nope'" --config "$tmp/fast.yaml" --http 0 --http-param events=nope
+  check_usage "--hub without --http" "--hub serves a map" --hub
+  check_usage "--hub with a config" "--hub runs no pipeline" --hub --http 0 --config "$tmp/fast.yaml"
+  check_usage "--http-param without --http" "--http-param needs --http" --config "$tmp/fast.yaml" --http-param linger_s=1
+  check_usage "no config" "--config is required" --http 0
+  # A real-time node with the map: URL on stdout, the page and the state served while it runs, SIGTERM exits 0.
+  "$bin/locusd" --config "$tmp/long.yaml" --output "$tmp/map.jsonl" --http 127.0.0.1:0 > "$tmp/map.out" 2> "$tmp/map.err" &
+  pid=$!
+  url=""
+  for _ in $(seq 100); do url=$(sed -n 's/^map: //p' "$tmp/map.out"); [ -n "$url" ] && break; sleep 0.1; done
+  [[ "$url" == http://127.0.0.1:*/ ]] && ok "--http prints the map's URL ($url)" || fail "no map URL on stdout"
+  if [ -n "$url" ]; then
+    code=$(curl -s -o /dev/null -w '%{http_code}' "$url") && [ "$code" = 200 ] && ok "the page is served" || fail "GET / -> $code"
+    sleep 2
+    curl -s "${url}api/state" > "$tmp/state.json"
+    python3 - "$tmp/state.json" <<'PY' && ok "the state lists the node's devices with their link" || fail "state: $(head -c 300 "$tmp/state.json")"
+import json, sys
+s = json.load(open(sys.argv[1]))
+ids = {d["id"]: d for d in s["devices"]}
+assert ids and all(d["link"] == "in-process" for d in ids.values()), ids
+assert s["finished"] is False and s["status"].startswith("running"), s["status"]
+PY
+  fi
+  kill -TERM $pid; wait $pid; s=$?
+  [ $s -eq 0 ] && ok "--http node: SIGTERM exits 0" || { fail "--http node: exit $s"; cat "$tmp/map.err"; }
+else
+  "$bin/locusd" --config "$tmp/fast.yaml" --http 0 > /dev/null 2> "$tmp/map.err"; s=$?
+  [ $s -eq 2 ] && grep -q "HTTP map support was not built in (LOCUS_WITH_HTTP=" "$tmp/map.err" && ok "--http without the map: exit 2, not built in" || fail "--http without the map: exit $s"
+fi
+
 echo "$passes passed, $fails failed"
 [ $fails -eq 0 ]

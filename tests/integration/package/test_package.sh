@@ -27,7 +27,7 @@ field() { dpkg-deb -f "$deb" "$1"; }
 depends=$(field Depends)
 echo "     Depends: $depends"
 for lib in libc6 libstdc++6 libyaml-cpp0.7 libfftw3-single3 libsndfile1 libasound2 libjack-jackd2-0 \
-           libsdbus-c++1 libmosquitto1 adduser; do
+           libsdbus-c++1 libmosquitto1 libcpp-httplib0.11 adduser; do
   re=$(sed 's/[+.]/\\&/g' <<<"$lib")
   if grep -qE "(^|, |\\| )$re( |,|$)" <<<"$depends"; then ok "Depends names $lib"; else fail "Depends lacks $lib"; fi
 done
