@@ -400,6 +400,18 @@ class GoldcodeDetector final : public Detector {
     canc_next_.assign(channels_, 0);
     refine_doppler_ = static_cast<std::size_t>(params.get_int("refine_doppler_steps"));
 
+    // Two-path first-arrival model (first_path).
+    mp_max_ = static_cast<std::size_t>(std::llround(params.get_float("multipath_max_s") * fs_));
+    mp_min_ = std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(params.get_float("multipath_min_s") * fs_)));
+    if (mp_max_ > 0 && mp_max_ < mp_min_)
+      throw std::runtime_error("goldcode: multipath_max_s must be 0 (off) or >= multipath_min_s");
+    mp_gain_ = params.get_float("multipath_gain");
+    gram_.assign(mp_max_ > 0 ? templates_.size() * 4 * (mp_max_ + 1) : 0, 0.0);
+    gram_done_.assign(templates_.size(), 0);
+    mp_res_.assign(mp_max_ > 0 ? full_len_ + 2 * mp_max_ + 8 : 0, 0.0f);
+    mp_zi_.assign(mp_max_ + mp_max_ / 2 + 8, 0.0);
+    mp_zq_.assign(mp_max_ + mp_max_ / 2 + 8, 0.0);
+
     // Working memory.
     refine_half_ = static_cast<std::int64_t>(D_ / 2 + 3);
     const std::size_t ring_need = (2 * nfft_ + M_) * D_ + max_block_ + full_len_ + 4 * static_cast<std::size_t>(refine_half_);
@@ -1002,6 +1014,137 @@ class GoldcodeDetector final : public Detector {
     }
   }
 
+  // Σ_m x[m]·y[m − d] over the template support, d = 0..mp_max_: the template's auto/cross-correlations
+  // the two-path model needs (computed on first use per code and Doppler version; buffers from configure).
+  const double* path_gram(std::size_t code, std::size_t f) noexcept {
+    const std::size_t idx = code * nd_ + f;
+    double* g = gram_.data() + idx * 4 * (mp_max_ + 1);
+    if (!gram_done_[idx]) {
+      const CodeTemplate& t = tpl(code, f);
+      for (std::size_t d = 0; d <= mp_max_; ++d) {
+        const std::size_t n = full_len_ - d;
+        double ii, iq, qi, qq;
+        dot2(t.full_i.data() + d, t.full_i.data(), t.full_q.data(), n, ii, iq);
+        dot2(t.full_q.data() + d, t.full_i.data(), t.full_q.data(), n, qi, qq);
+        g[4 * d + 0] = ii;
+        g[4 * d + 1] = iq;
+        g[4 * d + 2] = qi;
+        g[4 * d + 3] = qq;
+      }
+      gram_done_[idx] = 1;
+    }
+    return g;
+  }
+
+  // First path of an arrival whose matched-filter envelope peaks at `frame` (code u, Doppler bin f):
+  // a direct path and a reflection closely behind it (the floor, ~10-60 samples at 19 kHz over 3-15 m)
+  // merge into one envelope peak that lies between them. Model: the residual (audio minus the other
+  // codes' last reconstructions) around the arrival as a1·T(n − τ1) + a2·T(n − τ1 − δ), T the analytic
+  // template (in-phase and quadrature, real least squares), τ1 within [frame − mp_max_/2, frame + 2],
+  // δ in [mp_min_, mp_max_]; the pair explaining most energy wins. Its earlier path is the arrival when
+  // the pair explains > (1 + multipath_gain) × the best single path and the earlier path holds at
+  // least half the later one's power; else the single path. Parabolic interpolation over τ1.
+  double first_path(const Channel& ch, std::size_t u, std::size_t f, double frame) noexcept {
+    if (mp_max_ == 0) return frame;
+    const std::int64_t at = static_cast<std::int64_t>(std::llround(frame));
+    const std::int64_t l0 = at - static_cast<std::int64_t>(mp_max_ / 2), l1 = at + 2;
+    const std::int64_t span_lags = l1 - l0 + 1 + static_cast<std::int64_t>(mp_max_);
+    const std::int64_t oldest = std::max<std::int64_t>(static_cast<std::int64_t>(ch.start_frame),
+                                                       static_cast<std::int64_t>(ch.end_frame) - static_cast<std::int64_t>(ring_size_));
+    const std::size_t span = static_cast<std::size_t>(span_lags) + full_len_;
+    if (l0 < oldest || l0 + static_cast<std::int64_t>(span) > static_cast<std::int64_t>(ch.end_frame) ||
+        span > mp_res_.size())
+      return frame;
+    float* r = mp_res_.data();
+    {
+      const std::size_t a = static_cast<std::uint64_t>(l0) & ring_mask_;
+      const std::size_t n1 = std::min(span, ring_size_ - a);
+      std::memcpy(r, ch.ring.data() + a, n1 * sizeof(float));
+      std::memcpy(r + n1, ch.ring.data(), (span - n1) * sizeof(float));
+    }
+    for (std::size_t v = 0; v < ncodes_; ++v) {  // the other codes' last detections, where they overlap
+      if (v == u || static_cast<int>(v) == own_ || (ch.fin_ci[v] == 0.0 && ch.fin_cq[v] == 0.0)) continue;
+      const std::int64_t ov = static_cast<std::int64_t>(std::llround(ch.fin_frame[v]));
+      const CodeTemplate& to = tpl(v, ch.fin_dop[v]);
+      const std::int64_t j0 = std::max<std::int64_t>(0, l0 - ov);
+      const std::int64_t j1 = std::min<std::int64_t>(static_cast<std::int64_t>(full_len_), l0 + static_cast<std::int64_t>(span) - ov);
+      if (j1 > j0)
+        sub2(r + (ov + j0 - l0), to.full_i.data() + j0, to.full_q.data() + j0, static_cast<float>(ch.fin_ci[v]),
+             static_cast<float>(ch.fin_cq[v]), static_cast<std::size_t>(j1 - j0));
+    }
+    const CodeTemplate& t = tpl(u, f);
+    for (std::int64_t j = 0; j < span_lags; ++j)
+      dot2(r + j, t.full_i.data(), t.full_q.data(), full_len_, mp_zi_[static_cast<std::size_t>(j)], mp_zq_[static_cast<std::size_t>(j)]);
+    const double* g = path_gram(u, f);
+    const double eii = g[0], eiq = g[1], eqq = g[3];
+    const std::int64_t nl = l1 - l0 + 1;
+    // Single path: the best lag's explained energy (2x2 least squares, in-phase and quadrature).
+    const double det1 = eii * eqq - eiq * eiq;
+    if (!(det1 > 0.0)) return frame;
+    double best1 = 0.0;
+    for (std::int64_t j = 0; j < nl; ++j) {
+      const double zi = mp_zi_[static_cast<std::size_t>(j)], zq = mp_zq_[static_cast<std::size_t>(j)];
+      best1 = std::max(best1, (eqq * zi * zi - 2.0 * eiq * zi * zq + eii * zq * zq) / det1);
+    }
+    // Two paths: 4x4 normal equations per (τ1, δ), Cholesky.
+    auto explain2 = [&](std::int64_t j, std::size_t d, double& p1, double& p2) noexcept {
+      const double* gd = g + 4 * d;
+      double G[4][4] = {{eii, eiq, gd[0], gd[1]}, {eiq, eqq, gd[2], gd[3]}, {gd[0], gd[2], eii, eiq}, {gd[1], gd[3], eiq, eqq}};
+      const double b[4] = {mp_zi_[static_cast<std::size_t>(j)], mp_zq_[static_cast<std::size_t>(j)],
+                           mp_zi_[static_cast<std::size_t>(j) + d], mp_zq_[static_cast<std::size_t>(j) + d]};
+      double L[4][4] = {};
+      for (int i = 0; i < 4; ++i)
+        for (int k = 0; k <= i; ++k) {
+          double sum = G[i][k];
+          for (int m = 0; m < k; ++m) sum -= L[i][m] * L[k][m];
+          if (i == k) {
+            if (!(sum > 1e-9 * eii)) return -1.0;
+            L[i][i] = std::sqrt(sum);
+          } else {
+            L[i][k] = sum / L[k][k];
+          }
+        }
+      double y[4], c[4];
+      for (int i = 0; i < 4; ++i) {
+        double sum = b[i];
+        for (int m = 0; m < i; ++m) sum -= L[i][m] * y[m];
+        y[i] = sum / L[i][i];
+      }
+      for (int i = 3; i >= 0; --i) {
+        double sum = y[i];
+        for (int m = i + 1; m < 4; ++m) sum -= L[m][i] * c[m];
+        c[i] = sum / L[i][i];
+      }
+      p1 = c[0] * c[0] + c[1] * c[1];
+      p2 = c[2] * c[2] + c[3] * c[3];
+      return y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3];
+    };
+    double best2 = -1.0, bp1 = 0.0, bp2 = 0.0;
+    std::int64_t bj = -1;
+    std::size_t bd = 0;
+    for (std::int64_t j = 0; j < nl; ++j)
+      for (std::size_t d = mp_min_; d <= mp_max_; ++d) {
+        double p1, p2;
+        const double e = explain2(j, d, p1, p2);
+        if (e > best2) {
+          best2 = e;
+          bj = j;
+          bd = d;
+          bp1 = p1;
+          bp2 = p2;
+        }
+      }
+    if (bj < 0 || !(best2 > (1.0 + mp_gain_) * best1) || !(bp1 >= 0.5 * bp2)) return frame;
+    double off = 0.0;
+    if (bj > 0 && bj + 1 < nl) {
+      double q1, q2;
+      const double em = explain2(bj - 1, bd, q1, q2), ep = explain2(bj + 1, bd, q1, q2);
+      const double den = em - 2.0 * best2 + ep;
+      if (em >= 0.0 && ep >= 0.0 && den < 0.0) off = std::clamp(0.5 * (em - ep) / den, -0.5, 0.5);
+    }
+    return static_cast<double>(l0 + bj) + off;
+  }
+
   void finalize(std::uint32_t c, std::size_t u, EventSink& out) noexcept {
     Channel& ch = chans_[c];
     Candidate& k = ch.cand[u];
@@ -1042,7 +1185,7 @@ class GoldcodeDetector final : public Detector {
     d.stream = stream_;
     d.channel = static_cast<std::uint16_t>(c);
     d.template_index = static_cast<std::uint16_t>(u);
-    d.frame = frame;
+    d.frame = first_path(ch, u, dop, frame);
     d.sample_rate_hz = fs_;
     d.snr_db = static_cast<float>(10.0 * std::log10(rho_c * rho_c / k.noise));
     d.confidence = static_cast<float>(std::clamp(rho_fine, 0.0, 1.0));
@@ -1087,7 +1230,13 @@ class GoldcodeDetector final : public Detector {
   std::vector<cf> spec_xi_, spec_xq_, spec_w_;
   std::vector<double> rho_, noise_, pre_e_, pre_si_, pre_sq_;
   std::vector<Member> members_;
-  std::size_t eval_dop_ = 0;  // Doppler bin of the last evaluate_peak's own member
+  std::size_t eval_dop_ = 0;
+  std::size_t mp_min_ = 8, mp_max_ = 100;  // two-path model: reflection delays searched (frames)
+  double mp_gain_ = 0.1;
+  std::vector<double> gram_;               // per (code, Doppler): 4·(mp_max_+1) template correlations
+  std::vector<std::uint8_t> gram_done_;
+  std::vector<float> mp_res_;
+  std::vector<double> mp_zi_, mp_zq_;  // Doppler bin of the last evaluate_peak's own member
   std::vector<float> resid_;  // joint refinement residual; resid_[i] is frame res_lo_ + i
   std::int64_t res_lo_ = 0;
   bool incremental_ = false;  // resid_ kept up to date across refinements (≥ 3 members)
@@ -1137,6 +1286,13 @@ const ParamSchema& schema() {
                   "Doppler search range at the carrier, +-: relative speeds up to c * doppler_max_hz / carrier (0 = none)."),
       float_param("doppler_step_hz", 5.0, 0.5, 500.0, "Hz",
                   "Doppler grid step (coherent loss < 1 dB below ~0.5 / code duration; 127 chips of 40: 4.3 Hz)."),
+      float_param("multipath_max_s", 0.00227, 0.0, 0.01, "s",
+                  "Two-path first-arrival model: longest reflection delay behind the direct path (0 = off: the "
+                  "envelope peak is the arrival)."),
+      float_param("multipath_min_s", 0.00018, 0.00002, 0.005, "s",
+                  "Two-path model: shortest reflection delay (below it the two paths are not resolvable in the band)."),
+      float_param("multipath_gain", 0.1, 0.0, 10.0, "",
+                  "Two-path model: the pair must explain this fraction more energy than the best single path."),
       int_param("refine_doppler_steps", std::int64_t{1}, 0, 8, "",
                 "Grid steps either side of the coarse Doppler searched again by the full-rate refinement."),
   };
