@@ -45,7 +45,7 @@ struct Peak {
 // a stronger user's cross-correlation sidelobe nearby, so several are kept and the joint refinement
 // decides.
 struct Candidate {
-  static constexpr int kMaxPeaks = 4;
+  static constexpr int kMaxPeaks = 8;
   bool open = false;
   std::int64_t lag = 0;  // best peak so far (used by the other codes' joint refinements)
   double rho = 0.0;
@@ -137,6 +137,9 @@ struct Channel {
   std::vector<double> last_rho;     // per code: ρ of the previous lag (across hops)
   std::vector<double> fin_frame, fin_ci, fin_cq;  // per code: the last final detection's estimate
   std::vector<std::size_t> fin_dop;               // ... and its Doppler bin
+  std::vector<AudioDetection> pend;               // per code: the detection waiting for its separation
+  std::vector<std::size_t> pend_dop;
+  std::vector<std::uint8_t> has_pend;
   std::uint64_t end_frame = 0;      // one past the last frame written to `ring`
   double level = 0.0;               // slow average of the window energy (guards near-silent windows)
   bool started = false;
@@ -399,6 +402,7 @@ class GoldcodeDetector final : public Detector {
     canc_seen_.assign(channels_, 0);
     canc_next_.assign(channels_, 0);
     refine_doppler_ = static_cast<std::size_t>(params.get_int("refine_doppler_steps"));
+    select_amplitude_ = params.get_string("select") == "amplitude";
 
     // Two-path first-arrival model (first_path).
     mp_max_ = static_cast<std::size_t>(std::llround(params.get_float("multipath_max_s") * fs_));
@@ -414,7 +418,8 @@ class GoldcodeDetector final : public Detector {
 
     // Working memory.
     refine_half_ = static_cast<std::int64_t>(D_ / 2 + 3);
-    const std::size_t ring_need = (2 * nfft_ + M_) * D_ + max_block_ + full_len_ + 4 * static_cast<std::size_t>(refine_half_);
+    sep_ = params.get_float("min_separation_s") * fs_;
+    const std::size_t ring_need = static_cast<std::size_t>(sep_) + 2 * mp_max_ + (2 * nfft_ + M_) * D_ + max_block_ + full_len_ + 4 * static_cast<std::size_t>(refine_half_);
     ring_size_ = std::bit_ceil(ring_need);
     ring_mask_ = ring_size_ - 1;
     chans_.assign(channels_, Channel{});
@@ -431,6 +436,9 @@ class GoldcodeDetector final : public Detector {
       ch.fin_ci.assign(ncodes_, 0.0);
       ch.fin_cq.assign(ncodes_, 0.0);
       ch.fin_dop.assign(ncodes_, d0_);
+      ch.pend.assign(ncodes_, AudioDetection{});
+      ch.pend_dop.assign(ncodes_, d0_);
+      ch.has_pend.assign(ncodes_, 0);
     }
     bp_.assign(max_block_, 0.0f);
     mi_.assign(max_block_, 0.0f);
@@ -591,6 +599,7 @@ class GoldcodeDetector final : public Detector {
     for (auto& l : ch.last_final) l = INT64_MIN / 2;
     for (auto& r : ch.last_rho) r = -1.0;
     for (auto& r : ch.fin_frame) r = -1e300;
+    for (auto& h : ch.has_pend) h = 0;
     ch.end_frame = frame;
     ch.level = 0.0;
     ch.started = true;
@@ -715,11 +724,17 @@ class GoldcodeDetector final : public Detector {
         k.peaks[i].rho_next = rho;
         k.peaks[i].have_next = true;
       }
+    // A waiting detection is final once no candidate within the separation can still be open.
+    if (ch.has_pend[u] && static_cast<double>(lag) > (ch.pend[u].frame + sep_) / static_cast<double>(D_) +
+                                                         static_cast<double>(len + 5 + (2 * refine_half_) / static_cast<std::int64_t>(D_)))
+      emit_pending(c, u, out);
     // Final one code length after the first peak, plus the lags the full-rate refinement reaches.
     if (k.open && lag > k.first_lag + len + 3 + (2 * refine_half_) / static_cast<std::int64_t>(D_)) finalize(c, u, out);
     if (lag < ch.grid_start) return;  // window reaches back before the data since the last restart
     // ρ²/noise ≥ 10^(min_snr_db/10), without a logarithm per lag and code.
-    if (rho >= min_rho_coarse_ && rho * rho >= min_snr_lin_ * noise && lag > ch.last_final[u] + len / 2) {
+    // Without the separation rule, the half code after a detection belongs to it; with it, a stronger
+    // peak there replaces a weaker detection (offer()).
+    if (rho >= min_rho_coarse_ && rho * rho >= min_snr_lin_ * noise && (sep_ > 0.0 || lag > ch.last_final[u] + len / 2)) {
       if (!k.open) {
         k.open = true;
         k.first_lag = lag;
@@ -755,6 +770,7 @@ class GoldcodeDetector final : public Detector {
   void flush_candidates(std::uint32_t c, EventSink& out) noexcept {
     for (std::size_t u = 0; u < ncodes_; ++u)
       if (chans_[c].cand[u].open) finalize(c, u, out);
+    for (std::size_t u = 0; u < ncodes_; ++u) emit_pending(c, u, out);
   }
 
   // Kernels of the refinement, on GCC/Clang vector extensions (SSE on x86-64, NEON on the Pi; no
@@ -1157,7 +1173,11 @@ class GoldcodeDetector final : public Detector {
     for (int i = 0; i < k.npeaks; ++i) {
       double f, a, r, pi, pq;
       evaluate_peak(ch, u, k.peaks[i], f, a, r, pi, pq);
-      if (r > rho_fine) {
+      // The kept peak: the largest refined amplitude among those that pass the Pearson test (a
+      // normalised coefficient favours lags where the window holds less interference, not the code).
+      const bool better = select_amplitude_ ? (r >= min_rho_ && (rho_fine < min_rho_ || a > amp)) || (rho_fine < min_rho_ && r > rho_fine)
+                                            : r > rho_fine;
+      if (better) {
         frame = f;
         amp = a;
         rho_fine = r;
@@ -1185,11 +1205,39 @@ class GoldcodeDetector final : public Detector {
     d.stream = stream_;
     d.channel = static_cast<std::uint16_t>(c);
     d.template_index = static_cast<std::uint16_t>(u);
-    d.frame = first_path(ch, u, dop, frame);
+    d.frame = frame;  // the envelope peak until emit_pending() finds the first path
     d.sample_rate_hz = fs_;
     d.snr_db = static_cast<float>(10.0 * std::log10(rho_c * rho_c / k.noise));
     d.confidence = static_cast<float>(std::clamp(rho_fine, 0.0, 1.0));
     d.amplitude = static_cast<float>(amp);
+    offer(c, u, d, dop, out);
+  }
+
+  // Non-maximum suppression per code: of the accepted peaks closer than min_separation_s, only the
+  // one with the largest refined amplitude is reported (the others are the interference's peaks: the
+  // other users' cross-correlation and reverberation lift the code's matched filter around an
+  // emission burst). A peak waits until nothing within the separation can still replace it.
+  void offer(std::uint32_t c, std::size_t u, const AudioDetection& d, std::size_t dop, EventSink& out) noexcept {
+    Channel& ch = chans_[c];
+    if (ch.has_pend[u] && std::abs(d.frame - ch.pend[u].frame) < sep_) {
+      if (d.amplitude > ch.pend[u].amplitude) {
+        ch.pend[u] = d;
+        ch.pend_dop[u] = dop;
+      }
+      return;
+    }
+    if (ch.has_pend[u]) emit_pending(c, u, out);
+    ch.pend[u] = d;
+    ch.pend_dop[u] = dop;
+    ch.has_pend[u] = 1;
+  }
+
+  void emit_pending(std::uint32_t c, std::size_t u, EventSink& out) noexcept {
+    Channel& ch = chans_[c];
+    if (!ch.has_pend[u]) return;
+    AudioDetection d = ch.pend[u];
+    d.frame = first_path(ch, u, ch.pend_dop[u], d.frame);
+    ch.has_pend[u] = 0;
     if (!out.emit(Event{d})) ++dropped_;
   }
 
@@ -1231,6 +1279,8 @@ class GoldcodeDetector final : public Detector {
   std::vector<double> rho_, noise_, pre_e_, pre_si_, pre_sq_;
   std::vector<Member> members_;
   std::size_t eval_dop_ = 0;
+  bool select_amplitude_ = true;
+  double sep_ = 0.0;  // min_separation_s in frames
   std::size_t mp_min_ = 8, mp_max_ = 100;  // two-path model: reflection delays searched (frames)
   double mp_gain_ = 0.1;
   std::vector<double> gram_;               // per (code, Doppler): 4·(mp_max_+1) template correlations
@@ -1264,12 +1314,12 @@ const ParamSchema& schema() {
       int_param("degree", std::int64_t{7}, 5, 11, "", "Gold code degree r: length 2^r - 1 (format pairs: 5,6,7,9,10,11)."),
       float_list_param("codes", std::vector<double>{0.0, 1.0, 2.0, 3.0}, 0.0, 2049.0, "",
                        "Family indices of the users' codes; template_index of a detection is the position here.", 1, 64),
-      float_param("band_width_hz", 4800.0, 50.0, 40000.0, "Hz", "Width of the band-pass around the carrier (Montage: 1000)."),
+      float_param("band_width_hz", 3600.0, 50.0, 40000.0, "Hz", "Width of the band-pass around the carrier (40-sample chips at 44.1 kHz: main lobe +-1.1 kHz and the first side lobes, which sharpen the arrival)."),
       int_param("filter_order", std::int64_t{4}, 1, 12, "", "Butterworth prototype order of the band-pass (2x poles)."),
       int_param("decimation", std::int64_t{0}, 0, 64, "", "Baseband decimation factor; 0 = floor(fs / (1.6 band_width_hz))."),
       float_param("min_pearson_coarse", 0.15, 0.01, 1.0, "",
                   "Pearson coefficient (baseband, all users present) that opens a candidate."),
-      float_param("min_snr_db", 6.0, 0.0, 60.0, "dB", "Candidate peak rho^2 over the mean rho^2 of the code in the hop."),
+      float_param("min_snr_db", 4.5, 0.0, 60.0, "dB", "Candidate peak rho^2 over the mean rho^2 of the code in the hop (low: the interference of an emission burst lifts the mean; min_pearson and the separation rule decide)."),
       float_param("min_pearson", 0.2, 0.01, 1.0, "",
                   "Pearson coefficient of the full-rate refinement, other users subtracted, a detection must reach."),
       bool_param("from_scene", false,
@@ -1280,7 +1330,7 @@ const ParamSchema& schema() {
                  "before searching the others; its arrivals come from the fits. Needs the scene geometry."),
       float_param("cancel_pre_s", 0.0015, 0.0, 0.01, "s",
                   "Own-emission canceller: fitted response before the code's start (non-causal transducer responses)."),
-      float_param("cancel_post_s", 0.003, 0.0, 0.05, "s",
+      float_param("cancel_post_s", 0.008, 0.0, 0.05, "s",
                   "Own-emission canceller: fitted response after the start (transducer ringing, earliest echoes)."),
       float_param("doppler_max_hz", 150.0, 0.0, 2000.0, "Hz",
                   "Doppler search range at the carrier, +-: relative speeds up to c * doppler_max_hz / carrier (0 = none)."),
@@ -1293,6 +1343,12 @@ const ParamSchema& schema() {
                   "Two-path model: shortest reflection delay (below it the two paths are not resolvable in the band)."),
       float_param("multipath_gain", 0.1, 0.0, 10.0, "",
                   "Two-path model: the pair must explain this fraction more energy than the best single path."),
+      enum_param("select", std::string("amplitude"), {"amplitude", "pearson"},
+                   "Among a code's peaks within one code length: the largest refined amplitude that passes "
+                   "min_pearson (amplitude), or the largest refined Pearson coefficient (pearson)."),
+      float_param("min_separation_s", 0.45, 0.0, 10.0, "s",
+                  "Detections of one code closer than this: only the strongest is reported (keep it below the "
+                  "emission period; 0 = every accepted peak)."),
       int_param("refine_doppler_steps", std::int64_t{1}, 0, 8, "",
                 "Grid steps either side of the coarse Doppler searched again by the full-rate refinement."),
   };
