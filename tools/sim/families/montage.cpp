@@ -31,6 +31,7 @@ Simulation make_montage(const FamilyOptions& opts) {
   const std::string room = opts.get_choice("room", "none", {"none", "hall"});
   const int degree = static_cast<int>(opts.get_int("degree", 5, 5, 11));
   const std::string formation = opts.get_choice("formation", "pairs", {"pairs", "free"});
+  const double amplitude = opts.get_double("amplitude", 1.0, 0.001, 1.0);
   opts.finish("montage");
   if (degree == 8) throw std::invalid_argument("montage: degree 8 has no preferred Gold pair (5, 6, 7, 9, 10, 11)");
   if (formation == "free" && room != "hall")
@@ -93,7 +94,7 @@ Simulation make_montage(const FamilyOptions& opts) {
     gold.index = 2 + i;
     gold.carrier_hz = carrier_hz;
     gold.chip_samples = chip_samples;
-    gold.amplitude = 1.0;
+    gold.amplitude = amplitude;
     d.emits = {gold};
     d.trajectory = traj;
     d.clock = draw_clock(prof, clocks);
@@ -144,6 +145,8 @@ const Family& montage() {
        {"carrier_hz", "double", "19000", "BPSK carrier"},
        {"room", "none|hall", "none", "free field (outdoor) or a 40x30x6 m hall"},
        {"degree", "int", "5", "Gold code degree r (5, 6, 7, 9, 10, 11; the foreign Montage world: 7)"},
+       {"amplitude", "double", "1.0", "Gold tone amplitude a (0..1; 1 clips the own tone at the phone's mic 5 mm "
+        "from its speaker in the hall)"},
        {"formation", "pairs|free", "pairs", "pairs side by side on one route, or free: every walker on its own "
         "random route in the hall (1-20 m apart, relative speeds up to ~3 m/s; needs room=hall)"}},
       make_montage};
