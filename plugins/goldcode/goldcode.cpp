@@ -452,6 +452,7 @@ class GoldcodeDetector final : public Detector {
     im_.assign(nfft_, 0.0f);
     rho_.assign(hop_ * ncodes_, 0.0);
     dop_.assign(hop_ * ncodes_, 0);
+    win_w_.assign(hop_, 0.0);
     noise_.assign(ncodes_, 0.0);
     members_.reserve(2 * ncodes_ + 1);  // u + per other code: last detection and open candidate
     // Members lie within one template length of the peak on either side (evaluate_peak).
@@ -658,6 +659,11 @@ class GoldcodeDetector final : public Detector {
     const double hop_mean_e = (pre_e_[hop_ + M_ - 1] - pre_e_[0]) / static_cast<double>(hop_ + M_ - 1) * m;
     ch.level = ch.level == 0.0 ? hop_mean_e : 0.8 * ch.level + 0.2 * hop_mean_e;
     const std::size_t nb = nfft_ / 2 + 1;
+    for (std::size_t d = 0; d < hop_; ++d) {
+      const double si = pre_si_[d + M_] - pre_si_[d], sq = pre_sq_[d + M_] - pre_sq_[d];
+      const double e = pre_e_[d + M_] - pre_e_[d] - (si * si + sq * sq) / m;
+      win_w_[d] = e > min_e ? inv_n * inv_n / e : 0.0;
+    }
     for (std::size_t u = 0; u < ncodes_; ++u) {
       double* rho = &rho_[u * hop_];
       std::uint16_t* dop = &dop_[u * hop_];
@@ -666,7 +672,9 @@ class GoldcodeDetector final : public Detector {
         noise_[u] = 1e-12;
         continue;
       }
-      // ρ per lag: the best of the code's Doppler versions.
+      // ρ per lag: the best of the code's Doppler versions. The window energy does not depend on the
+      // version: 1/(e·n²) once per lag, then ρ² = |z|²·w / energy per version (squares compared,
+      // one square root per lag).
       std::fill(rho, rho + hop_, 0.0);
       for (std::size_t f = 0; f < nd_; ++f) {
         const CodeTemplate& t = tpl(u, f);
@@ -677,18 +685,17 @@ class GoldcodeDetector final : public Detector {
         for (std::size_t b = 0; b < nb; ++b)
           spec_w_[b] = spec_xq_[b] * std::conj(t.spec_i[b]) - spec_xi_[b] * std::conj(t.spec_q[b]);
         fft_->inverse(spec_w_.data(), im_.data());
+        const double inv_t = t.energy > 1e-30 ? 1.0 / t.energy : 0.0;
         for (std::size_t d = 0; d < hop_; ++d) {
-          const double cr = re_[d] * inv_n, ci = im_[d] * inv_n;
-          const double si = pre_si_[d + M_] - pre_si_[d], sq = pre_sq_[d + M_] - pre_sq_[d];
-          const double e = pre_e_[d + M_] - pre_e_[d] - (si * si + sq * sq) / m;
-          const double den = e * t.energy;
-          const double r = e > min_e && den > 1e-30 ? std::min(std::sqrt((cr * cr + ci * ci) / den), 1.0) : 0.0;
-          if (r > rho[d]) {
-            rho[d] = r;
+          const double cr = re_[d], ci = im_[d];
+          const double r2 = (cr * cr + ci * ci) * win_w_[d] * inv_t;
+          if (r2 > rho[d]) {
+            rho[d] = r2;
             dop[d] = static_cast<std::uint16_t>(f);
           }
         }
       }
+      for (std::size_t d = 0; d < hop_; ++d) rho[d] = std::min(std::sqrt(rho[d]), 1.0);
       double sum_r2 = 0.0;
       for (std::size_t d = 0; d < hop_; ++d) sum_r2 += rho[d] * rho[d];
       noise_[u] = std::max(sum_r2 / static_cast<double>(hop_), 1e-12);
@@ -1260,6 +1267,7 @@ class GoldcodeDetector final : public Detector {
   std::size_t nd_ = 1, d0_ = 0;
   std::size_t refine_doppler_ = 1;       // grid steps searched either side of the coarse Doppler
   std::vector<std::uint16_t> dop_;       // per code and lag of a hop: the best Doppler bin
+  std::vector<double> win_w_;            // per lag of a hop: 1 / (window energy · nfft²), 0 = too quiet
   int own_ = -1;                         // the code this device emits itself (cancelled), -1 = none
   dsp::EmissionCanceller canceller_;
   std::vector<std::uint8_t> canc_started_;  // per channel: the canceller holds this stream's samples
