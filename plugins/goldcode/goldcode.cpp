@@ -400,7 +400,6 @@ class GoldcodeDetector final : public Detector {
     }
     canc_started_.assign(channels_, 0);
     canc_seen_.assign(channels_, 0);
-    canc_next_.assign(channels_, 0);
     refine_doppler_ = static_cast<std::size_t>(params.get_int("refine_doppler_steps"));
     select_amplitude_ = params.get_string("select") == "amplitude";
 
@@ -485,7 +484,6 @@ class GoldcodeDetector final : public Detector {
       for (std::uint32_t c = 0; c < nch; ++c) {
         if (!canc_started_[c]) {
           canceller_.reset(c, block.first_frame);
-          canc_next_[c] = block.first_frame;
           canc_started_[c] = 1;
         }
         const float* x = block.channel_data[c];
@@ -545,7 +543,6 @@ class GoldcodeDetector final : public Detector {
       run(c, x + done, k, first + done, out);
       done += k;
     }
-    canc_next_[c] = first + n;
   }
 
   // The canceller's pending samples (end of stream or a gap): cancel, report, run, forget.
@@ -1272,7 +1269,6 @@ class GoldcodeDetector final : public Detector {
   dsp::EmissionCanceller canceller_;
   std::vector<std::uint8_t> canc_started_;  // per channel: the canceller holds this stream's samples
   std::vector<std::uint64_t> canc_seen_;    // per channel: canceller fits already reported
-  std::vector<std::uint64_t> canc_next_;    // per channel: next frame the canceller hands on
   const CodeTemplate& tpl(std::size_t code, std::size_t f) const noexcept { return templates_[code * nd_ + f]; }
   std::vector<dsp::Biquad> sos_;
   std::vector<double> lp_taps_;
