@@ -101,6 +101,12 @@ Simulation make_montage(const FamilyOptions& opts) {
     d.speaker_response = {300.0, 0.0, 2};
     d.mic_response = {60.0, 0.0, 2};
     d.imu = std::make_shared<PhoneImu>(phone_imu_config(100.0, prof.imu_noise_scale, true));
+    // Recording level: the phone's own tone (its speaker 5 mm from the mic) peaks at half full scale,
+    // as a phone sets its input level; at unit gain the 1/r self-path clipped it (TUM does the same).
+    {
+      const double r_self = std::max(1e-3, (d.mics_body_m[0] - *d.speaker_body_m).norm());
+      d.mic_gain = 0.5 * r_self / (sim.acoustics.level_at_1m * d.source_level * d.self_gain * amplitude);
+    }
     step_truth.emplace_back(d.id, traj.get());
     sim.devices.push_back(std::move(d));
   }
