@@ -13,6 +13,8 @@
 #include <limits>
 #include <cstdlib>
 #include <new>
+#include <span>
+#include <string>
 #include <vector>
 
 #include "locus/audio_ring.hpp"
@@ -433,6 +435,97 @@ TEST(RtSafety, ChirpMultipathFitDoesNotAllocateOrLock) {
   EXPECT_EQ(frees, 0);
   EXPECT_EQ(locks, 0);
   EXPECT_GE(sink.events.size(), kBeeps - 1) << "the beeps must be detected for the test to mean anything";
+}
+
+// A Montage device: its own Gold code (through the own-emission canceller) overlapped by three other
+// users' codes 50 dB weaker and Doppler-shifted (walking, ±1.2 m/s), codes from the scene
+// (goldcode `from_scene`, `cancel_own`, Doppler search and the two-path first-arrival model on):
+// process_audio never allocates or locks.
+TEST(RtSafety, GoldcodeCancellerDopplerSearchDoesNotAllocateOrLock) {
+  Registry registry;
+  register_builtins(registry);
+  test::TestHost host;
+  FftwPlanner fftw({}, /*measure=*/false);
+  const locus_plugin_descriptor* d = registry.find_plugin("goldcode");
+  ASSERT_NE(d, nullptr);
+  Params params = Params::defaults(*d->schema());
+  params.set("from_scene", true);
+  constexpr std::uint32_t kBlock = 256;
+  constexpr double kFs = 44100.0;
+  StreamInfo info;
+  info.device = "A";
+  info.channels = 1;
+  info.sample_rate_hz = kFs;
+  info.max_block_frames = kBlock;
+  std::vector<SignalSpec> specs(4);
+  std::vector<SceneSignal> scene;
+  for (int u = 0; u < 4; ++u) {
+    specs[static_cast<std::size_t>(u)].type = "gold";
+    specs[static_cast<std::size_t>(u)].degree = 7;
+    specs[static_cast<std::size_t>(u)].index = 2 + u;
+    specs[static_cast<std::size_t>(u)].carrier_hz = 19000.0;
+    specs[static_cast<std::size_t>(u)].chip_samples = 40;
+    scene.push_back(SceneSignal{std::string(1, static_cast<char>('A' + u)), specs[static_cast<std::size_t>(u)], false, {}});
+  }
+  DeviceGeometry geometry;
+  geometry.mic_count = 1;
+  geometry.has_speaker = true;
+  geometry.emits = std::span<const SignalSpec>(specs.data(), 1);
+  geometry.scene_emits = scene;
+  auto detector = registry.create_detector("goldcode");
+  HostContext ctx{host.log, host.clock, fftw, host.link, "goldcode", "A", &geometry};
+  detector->configure(info, params, ctx);
+
+  constexpr std::size_t kRounds = 6, kPeriod = 44100;
+  std::vector<float> audio(kRounds * kPeriod + 8192, 0.0f);
+  std::uint32_t seed = 7;
+  for (float& v : audio) {
+    seed = seed * 1664525u + 1013904223u;
+    v = 1e-5f * (static_cast<float>(seed >> 8) / 16777216.0f - 0.5f);
+  }
+  const double speed[4] = {0.0, -1.2, 0.4, 1.2};
+  for (std::size_t r = 0; r < kRounds; ++r)
+    for (int u = 0; u < 4; ++u) {
+      const std::vector<std::uint8_t> chips = dsp::gold_chips(specs[static_cast<std::size_t>(u)]);
+      const double start = 4000.0 + static_cast<double>(r * kPeriod) + 97.3 * u;
+      const double alpha = 1.0 + speed[u] / 343.0, a = u == 0 ? 0.3 : 0.3 * std::pow(10.0, -50.0 / 20.0);
+      for (std::size_t n = static_cast<std::size_t>(start) + 1; n < audio.size(); ++n) {
+        const double t = alpha * (static_cast<double>(n) - start);
+        const auto k = static_cast<std::size_t>(t / 40.0);
+        if (k >= chips.size()) break;
+        audio[n] += static_cast<float>(a * (chips[k] ? -1.0 : 1.0) * std::cos(2.0 * M_PI * 19000.0 * t / kFs));
+      }
+    }
+  test::CollectingSink sink(1 << 12);
+  const float* chan[1];
+  AudioBlock block;
+  block.channel_data = chan;
+  block.channels = 1;
+  std::size_t pos = 0;
+  auto step = [&] {
+    chan[0] = audio.data() + pos;
+    block.frames = kBlock;
+    block.first_frame = pos;
+    detector->process_audio(block, sink);
+    pos += kBlock;
+  };
+  while (pos + kBlock <= kPeriod) step();
+  long allocs = 0, frees = 0, locks = 0;
+  {
+    RtSection rt;
+    while (pos + kBlock <= audio.size()) step();
+    allocs = rt.allocs();
+    frees = rt.frees();
+    locks = rt.locks();
+  }
+  EXPECT_EQ(allocs, 0);
+  EXPECT_EQ(frees, 0);
+  EXPECT_EQ(locks, 0);
+  std::size_t own = 0, others = 0;
+  for (const Event& e : sink.events)
+    if (const auto* a = std::get_if<AudioDetection>(&e)) (a->template_index == 0 ? own : others) += 1;
+  EXPECT_GE(own, kRounds - 2) << "the own code must be cancelled (and reported) for the test to mean anything";
+  EXPECT_GE(others, 3 * (kRounds - 3)) << "the other users must be found for the test to mean anything";
 }
 
 // A working TUM device: its own up-chirp (loud, through the own-emission canceller) overlapped by the

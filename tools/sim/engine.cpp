@@ -95,6 +95,10 @@ struct Source {
   Eigen::Vector3d speaker_body = Eigen::Vector3d::Zero();
   double level = 1.0;
   BandLimit response;
+  // The emitting device's DAC runs on its own clock: the sound is the signal at its local time since
+  // the start, (t − te0)·(1 + skew_ppm·1e-6) (1 for emitters without a clock). A device that hears
+  // itself then records its own emission on one clock, unstretched, as a real phone does.
+  double dac_rate = 1.0;
 };
 
 std::vector<dsp::Biquad> design(const BandLimit& b, double fs) { return design_response(b, fs); }  // response.hpp
@@ -562,7 +566,7 @@ class DeviceRenderer {
         }
         if (w.image == 0) r += obstruct_extra_m;  // diffracted first path: longer
         const double te = t - r / c_;
-        const double v = ev.value(te - te0);
+        const double v = ev.value((te - te0) * s.dac_rate);
         if (v != 0.0) out[i] += g / std::max(r, rmin) * v * (kappa > 0.0 ? std::exp(-kappa * r) : 1.0);
       }
     }
@@ -597,7 +601,8 @@ std::vector<Source> collect_sources(const Simulation& sim) {
   std::vector<Source> out;
   for (const auto& d : sim.devices) {
     if (!d.speaker_body_m || d.emits.empty()) continue;
-    out.push_back(Source{d.id, &d.emits, d.trajectory.get(), *d.speaker_body_m, d.source_level, d.speaker_response});
+    out.push_back(Source{d.id, &d.emits, d.trajectory.get(), *d.speaker_body_m, d.source_level, d.speaker_response,
+                         1.0 + d.clock.skew_ppm * 1e-6});
   }
   for (const auto& e : sim.emitters) {
     if (e.emits.empty()) continue;

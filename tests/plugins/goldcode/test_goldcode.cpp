@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "goldcode/goldcode.hpp"
@@ -96,7 +97,10 @@ Result run(Detector& d, const std::vector<float>& x, std::size_t block) {
 
 TEST(Goldcode, FourOverlappingUsersAllDetectedAtMinus5dB) {
   Fixture f;
-  const Params p = Params::defaults(plugins::goldcode::schema());  // codes 0,1,2,3, degree 7, 19 kHz, 40 chips
+  // Codes 0,1,2,3, degree 7, 19 kHz, 40 chips; stationary users: no Doppler search (each Doppler
+  // version is one more hypothesis the noise can match; MovingUsersFoundWithDopplerSearch covers it).
+  Params p = Params::defaults(plugins::goldcode::schema());
+  p.set("doppler_max_hz", 0.0);
   const std::vector<double> amp_rel = {1.0, 0.75, 0.55, 0.4};  // weakest user is at -5 dB
   const double weakest_snr_db = -5.0;
   std::mt19937 rng(1234);
@@ -145,6 +149,137 @@ TEST(Goldcode, FourOverlappingUsersAllDetectedAtMinus5dB) {
   RecordProperty("rms_error_frames", std::to_string(rms));
   std::printf("goldcode 4 users, weakest -5 dB: found %d/%d, spurious %d, max |err| %.3f, rms %.3f frames\n",
               found, total, spurious, max_err, rms);
+}
+
+// The gold code of `spec` from a source closing in at v m/s (c = 343 m/s): time-compressed by
+// alpha = 1 + v/c (carrier and chips), first sample at `start` frames, amplitude a.
+void add_moving(std::vector<float>& x, const dsp::SignalSpec& spec, double start, double v, double a) {
+  const std::vector<std::uint8_t> chips = dsp::gold_chips(spec);
+  const double alpha = 1.0 + v / 343.0;
+  for (std::size_t n = static_cast<std::size_t>(std::ceil(start)); n < x.size(); ++n) {
+    const double u = alpha * (static_cast<double>(n) - start);
+    const auto k = static_cast<std::size_t>(u / spec.chip_samples);
+    if (k >= chips.size()) break;
+    x[n] += static_cast<float>(a * (chips[k] ? -1.0 : 1.0) * std::cos(2.0 * M_PI * spec.carrier_hz * u / kFs));
+  }
+}
+
+// Walking users: 19 kHz shifted by up to ±83 Hz (±1.5 m/s), i.e. ~9.6 carrier cycles of phase rotation
+// over the 115 ms code, and the chips stretched by up to 22 samples. A correlation with the unshifted
+// code loses them; the Doppler search (default ±150 Hz) must find every user within 2 frames.
+TEST(Goldcode, MovingUsersFoundWithDopplerSearch) {
+  Fixture f;
+  const Params p = Params::defaults(plugins::goldcode::schema());
+  const std::vector<double> speed = {-1.5, -0.6, 0.7, 1.5};
+  std::mt19937 rng(99);
+  std::uniform_real_distribution<double> offset(0.0, 0.005 * kFs);
+  int found = 0, total = 0, found_plain = 0;
+  double max_err = 0.0;
+  for (int trial = 0; trial < 6; ++trial) {
+    const double sigma = 0.05;
+    const double a = std::sqrt(2.0 * sigma * sigma);  // 0 dB per user (full band)
+    std::vector<float> x(static_cast<std::size_t>(1.2 * kFs));
+    std::normal_distribution<float> noise(0.0f, static_cast<float>(sigma));
+    for (float& v : x) v = noise(rng);
+    std::vector<double> truth(4);
+    for (int u = 0; u < 4; ++u) {
+      truth[u] = 0.3 * kFs + trial * 31.7 + offset(rng);
+      add_moving(x, gold(u), truth[u], speed[static_cast<std::size_t>(u)] * (trial % 2 ? 1.0 : -1.0), a);
+    }
+    auto d = make(f, p);
+    const Result r = run(*d, x, 1024);
+    std::vector<int> hits(4, 0);
+    for (const AudioDetection& det : r.det) {
+      const double err = det.frame - truth[det.template_index];
+      if (std::abs(err) <= 2.0) {
+        ++hits[det.template_index];
+        max_err = std::max(max_err, std::abs(err));
+      }
+    }
+    for (int u = 0; u < 4; ++u) {
+      EXPECT_EQ(hits[u], 1) << "trial " << trial << " user " << u << " speed " << speed[static_cast<std::size_t>(u)];
+      found += hits[u] == 1;
+      ++total;
+    }
+    if (trial == 0) {  // the same audio without the Doppler search: the fast users are lost
+      Params q = p;
+      q.set("doppler_max_hz", 0.0);
+      auto d0 = make(f, q);
+      for (const AudioDetection& det : run(*d0, x, 1024).det)
+        if (std::abs(det.frame - truth[det.template_index]) <= 2.0) ++found_plain;
+    }
+  }
+  EXPECT_LE(found_plain, 2) << "without the Doppler search the ±1.5 m/s users should not be found";
+  std::printf("goldcode 4 moving users (±1.5 m/s), 0 dB: found %d/%d within 2 frames, max |err| %.2f; without "
+              "Doppler search %d/4 in trial 0\n", found, total, max_err, found_plain);
+}
+
+// Own emission 50 dB above three other users (a device hears itself a few cm away), through a short
+// speaker-to-mic response (direct path, a 6-sample ringing tap and an echo 150 samples later): with the
+// scene geometry the detector cancels it (dsp::EmissionCanceller) and finds the others within 2 frames;
+// the own arrival is reported from the canceller's fit.
+TEST(Goldcode, CancelsOwnEmissionAndFindsTheOthers) {
+  Fixture f;
+  std::vector<SignalSpec> mine = {gold(0)};
+  std::vector<SceneSignal> scene;
+  for (int u = 0; u < 4; ++u) scene.push_back(SceneSignal{std::string(1, static_cast<char>('A' + u)), gold(u), false, {}});
+  DeviceGeometry g;
+  g.mic_count = 1;
+  g.has_speaker = true;
+  g.emits = mine;
+  g.scene_emits = scene;
+  Params p = Params::defaults(plugins::goldcode::schema());
+  p.set("from_scene", true);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> offset(0.0, 0.004 * kFs);
+  int found = 0, total = 0, own_ok = 0, found_uncancelled = 0;
+  for (int trial = 0; trial < 4; ++trial) {
+    std::vector<float> x(static_cast<std::size_t>(1.5 * kFs));
+    std::normal_distribution<float> noise(0.0f, 2e-4f);
+    for (float& v : x) v = noise(rng);
+    const double own_at = 0.4 * kFs + 13.0 * trial;
+    add_signal(x, gold(0), own_at, 0.3);
+    add_signal(x, gold(0), own_at + 6.0, -0.09);
+    add_signal(x, gold(0), own_at + 150.0, 0.02);
+    std::vector<double> truth(4, own_at);
+    for (int u = 1; u < 4; ++u) {
+      truth[u] = own_at + offset(rng);
+      add_signal(x, gold(u), truth[u], 0.3 * std::pow(10.0, -50.0 / 20.0));
+    }
+    for (int cancel = 1; cancel >= 0; --cancel) {
+      if (!cancel && trial > 0) break;
+      Params q = p;
+      q.set("cancel_own", cancel == 1);
+      std::unique_ptr<Detector> d(plugins::goldcode::descriptor()->create_detector());
+      StreamInfo info;
+      info.device = DeviceId("A");
+      info.channels = 1;
+      info.sample_rate_hz = kFs;
+      info.max_block_frames = 1024;
+      HostContext ctx = f.ctx();
+      ctx.geometry = &g;
+      d->configure(info, q, ctx);
+      const Result r = run(*d, x, 1024);
+      std::vector<int> hits(4, 0);
+      for (const AudioDetection& det : r.det)
+        if (std::abs(det.frame - truth[det.template_index]) <= (det.template_index == 0 ? 1.0 : 2.0))
+          ++hits[det.template_index];
+      if (cancel) {
+        own_ok += hits[0] == 1;
+        for (int u = 1; u < 4; ++u) {
+          EXPECT_EQ(hits[u], 1) << "trial " << trial << " user " << u;
+          found += hits[u] == 1;
+          ++total;
+        }
+      } else {
+        for (int u = 1; u < 4; ++u) found_uncancelled += hits[u] == 1;
+      }
+    }
+  }
+  EXPECT_EQ(own_ok, 4);
+  EXPECT_LE(found_uncancelled, 1) << "without cancellation the others should be buried under the own code";
+  std::printf("goldcode own code +50 dB: others found %d/%d within 2 frames (without cancellation %d/3), own %d/4\n",
+              found, total, found_uncancelled, own_ok);
 }
 
 TEST(Goldcode, AmplitudeEstimateAndNoiseOnlyIsQuiet) {

@@ -74,6 +74,7 @@ def main():
     failures = 0
     for te0, src, idx in emissions:
         sig = dev[src]["emits"][idx]
+        src_rate = 1.0 + clocks[src]["skew_ppm"] * 1e-6 if src in clocks else 1.0
         p_src, q_src = poses[src]
         spk = p_src + quat_rotate(q_src, dev[src]["speaker"])
         p_rx, q_rx = poses["RX"]
@@ -87,7 +88,7 @@ def main():
             x = audio[k0:k0 + n, ch].astype(float)
             # waveform: scipy chirp at the exact (fractional) emission times of every sample
             t_emit = (k / fs - offset) / skew - r / c - te0
-            ref = template(t_emit, sig)
+            ref = template(t_emit * src_rate, sig)  # the source's DAC runs on its own clock
             gain = float(ref @ x / (ref @ ref))
             resid = np.max(np.abs(x - gain * ref)) / np.max(np.abs(x))
             # arrival: integer cross-correlation peak, then continuous sub-sample refinement
@@ -96,7 +97,7 @@ def main():
             coarse = k0 + int(np.argmax(xc))
 
             def neg_score(tau):
-                s = template((k - tau) / (fs * skew), sig)  # RX's sample grid stretches the chirp
+                s = template((k - tau) / (fs * skew) * src_rate, sig)  # RX's grid and TX's DAC clock
                 return -(s @ x) / np.sqrt(s @ s)
 
             res = optimize.minimize_scalar(neg_score, bounds=(coarse - 1.5, coarse + 1.5), method="bounded",

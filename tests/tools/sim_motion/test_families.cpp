@@ -143,4 +143,6 @@ TEST(Families, RejectUnknownAndOutOfRangeOptions) {
   EXPECT_THROW(make("locble", 1, {{"tags", "2"}, {"clustered", "2"}}), std::invalid_argument);
   EXPECT_THROW(make("spyloc", 1, {{"beacon", "3"}}), std::invalid_argument);
   EXPECT_THROW(make("montage", 1, {{"path", "circle"}}), std::invalid_argument);
+  EXPECT_THROW(make("montage", 1, {{"formation", "free"}}), std::invalid_argument);  // needs room=hall
+  EXPECT_THROW(make("montage", 1, {{"degree", "8"}}), std::invalid_argument);
 }

@@ -9,6 +9,7 @@
 // Truth: truth.csv (every phone), truth_steps.csv (heel strikes and stride lengths).
 // Deviations: outdoors = free field (no ground reflection); the "ranging command" radio message is
 // not simulated (phones emit at the same true time plus their own speaker latency).
+#include <stdexcept>
 #include <cmath>
 #include <numbers>
 
@@ -28,7 +29,13 @@ Simulation make_montage(const FamilyOptions& opts) {
   const int chip_samples = static_cast<int>(opts.get_int("chip_samples", 100, 4, 1000));
   const double carrier_hz = opts.get_double("carrier_hz", 19000.0, 15000.0, 21000.0);
   const std::string room = opts.get_choice("room", "none", {"none", "hall"});
+  const int degree = static_cast<int>(opts.get_int("degree", 5, 5, 11));
+  const std::string formation = opts.get_choice("formation", "pairs", {"pairs", "free"});
+  const double amplitude = opts.get_double("amplitude", 1.0, 0.001, 1.0);
   opts.finish("montage");
+  if (degree == 8) throw std::invalid_argument("montage: degree 8 has no preferred Gold pair (5, 6, 7, 9, 10, 11)");
+  if (formation == "free" && room != "hall")
+    throw std::invalid_argument("montage: formation=free walks in the hall: add -o room=hall");
 
   Simulation sim;
   sim.name = "montage-formation";
@@ -57,14 +64,23 @@ Simulation make_montage(const FamilyOptions& opts) {
     const int row = i / 2, col = i % 2;
     const double lateral = (col == 0 ? 0.5 : -0.5) * spacing_m;
     PedestrianParams pp;
-    pp.path_m = offset_polyline(path, lateral);
+    if (formation == "free") {
+      // Each walker on its own route through the middle of the hall (4 random waypoints in a 16x12 m
+      // area): the group spreads 1-20 m apart and walkers approach and leave each other at up to ~3 m/s
+      // (Doppler up to ~±160 Hz at 19 kHz), as in the foreign Montage world.
+      std::vector<Eigen::Vector2d> own;
+      for (int k = 0; k < 4; ++k) own.emplace_back(layout.uniform(12.0, 28.0), layout.uniform(9.0, 21.0));
+      pp.path_m = own;
+    } else {
+      pp.path_m = offset_polyline(path, lateral);
+    }
     pp.height_m = layout.uniform(1.60, 1.90);
     pp.step_freq_hz = layout.uniform(1.7, 2.1);
     pp.stride_a_m_s = 0.143 * pp.height_m * layout.uniform(0.9, 1.1);
     pp.stride_b_m = 0.143 * pp.height_m * layout.uniform(0.9, 1.1);
     // The rear row starts later by the time it takes to walk row_gap_m.
     const double speed = (*pp.stride_a_m_s * pp.step_freq_hz + *pp.stride_b_m) * pp.step_freq_hz;
-    pp.start_rest_s = 1.0 + row * row_gap_m / speed;
+    pp.start_rest_s = formation == "free" ? layout.uniform(0.5, 1.5) : 1.0 + row * row_gap_m / speed;
     auto traj = std::make_shared<PedestrianTrajectory>(pp, t_start - 1.0, Rng::derive(opts.seed, "montage/walk" + std::to_string(i)).next_u64());
     t_end = std::max(t_end, traj->end_s());
 
@@ -74,17 +90,23 @@ Simulation make_montage(const FamilyOptions& opts) {
     d.speaker_body_m = Eigen::Vector3d(0.0, -0.075, 0.0);
     dsp::SignalSpec gold;
     gold.type = "gold";
-    gold.degree = 5;
+    gold.degree = degree;
     gold.index = 2 + i;
     gold.carrier_hz = carrier_hz;
     gold.chip_samples = chip_samples;
-    gold.amplitude = 1.0;
+    gold.amplitude = amplitude;
     d.emits = {gold};
     d.trajectory = traj;
     d.clock = draw_clock(prof, clocks);
     d.speaker_response = {300.0, 0.0, 2};
     d.mic_response = {60.0, 0.0, 2};
     d.imu = std::make_shared<PhoneImu>(phone_imu_config(100.0, prof.imu_noise_scale, true));
+    // Recording level: the phone's own tone (its speaker 5 mm from the mic) peaks at half full scale,
+    // as a phone sets its input level; at unit gain the 1/r self-path clipped it (TUM does the same).
+    {
+      const double r_self = std::max(1e-3, (d.mics_body_m[0] - *d.speaker_body_m).norm());
+      d.mic_gain = 0.5 * r_self / (sim.acoustics.level_at_1m * d.source_level * d.self_gain * amplitude);
+    }
     step_truth.emplace_back(d.id, traj.get());
     sim.devices.push_back(std::move(d));
   }
@@ -127,7 +149,12 @@ const Family& montage() {
        {"row_gap_m", "double", "2.0", "distance between pairs (one behind the other)"},
        {"chip_samples", "int", "100", "samples per Gold chip (paper example: 100)"},
        {"carrier_hz", "double", "19000", "BPSK carrier"},
-       {"room", "none|hall", "none", "free field (outdoor) or a 40x30x6 m hall"}},
+       {"room", "none|hall", "none", "free field (outdoor) or a 40x30x6 m hall"},
+       {"degree", "int", "5", "Gold code degree r (5, 6, 7, 9, 10, 11; the foreign Montage world: 7)"},
+       {"amplitude", "double", "1.0", "Gold tone amplitude a (0..1; 1 clips the own tone at the phone's mic 5 mm "
+        "from its speaker in the hall)"},
+       {"formation", "pairs|free", "pairs", "pairs side by side on one route, or free: every walker on its own "
+        "random route in the hall (1-20 m apart, relative speeds up to ~3 m/s; needs room=hall)"}},
       make_montage};
   return family;
 }
