@@ -4,6 +4,9 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <sstream>
+#include <cstring>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -99,6 +102,13 @@ double LosClassifier::censor(float v) const noexcept {
 
 void LosClassifier::train(const std::vector<DecayVector>& los, const std::vector<DecayVector>& nlos, int components,
                           double censor_s) {
+  for (int cls = 0; cls < 2; ++cls) {  // checked first: a refused training leaves the model as it was
+    const auto& data = cls == 0 ? los : nlos;
+    if (data.size() < static_cast<std::size_t>(2 * components))
+      throw std::invalid_argument(std::string("spyloc classifier: ") + (cls == 0 ? "LoS" : "NLoS") + " class has " +
+                                  std::to_string(data.size()) + " labelled beeps; at least " +
+                                  std::to_string(2 * components) + " are needed");
+  }
   censor_s_ = censor_s;
   los_.clear();
   nlos_.clear();
@@ -132,11 +142,29 @@ double LosClassifier::p_los(const DecayVector& f) const noexcept {
 }
 
 void LosClassifier::load(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("spyloc: los_model '" + path + "': cannot read (" + std::strerror(errno) + ")");
+  std::stringstream text;
+  text << in.rdbuf();
+  load_text(text.str(), path);
+}
+
+void LosClassifier::load_text(const std::string& text, const std::string& path) {
+  const LosClassifier before = *this;  // a refused file leaves the model as it was
+  try {
+    parse(text, path);
+  } catch (...) {
+    *this = before;
+    throw;
+  }
+}
+
+void LosClassifier::parse(const std::string& text, const std::string& path) {
   YAML::Node root;
   try {
-    root = YAML::LoadFile(path);
+    root = YAML::Load(text);
   } catch (const std::exception& e) {
-    throw std::runtime_error("spyloc: los_model '" + path + "': cannot read (" + e.what() + ")");
+    throw std::runtime_error("spyloc: los_model '" + path + "': not YAML (" + e.what() + ")");
   }
   auto fail = [&](const std::string& field, const std::string& what) {
     throw std::runtime_error("spyloc: los_model '" + path + "': field '" + field + "': " + what);
@@ -183,9 +211,10 @@ void LosClassifier::load(const std::string& path) {
     }
     (cls == 0 ? los_ : nlos_) = std::move(out);
   }
-  if (root["trained_on"]) {
-    n_los_ = root["trained_on"]["los"].as<std::size_t>(0);
-    n_nlos_ = root["trained_on"]["nlos"].as<std::size_t>(0);
+  if (const YAML::Node t = root["trained_on"]) {
+    if (!t.IsMap()) fail("trained_on", "expected a mapping {los: N, nlos: N, note: ...}");
+    n_los_ = t["los"].as<std::size_t>(0);
+    n_nlos_ = t["nlos"].as<std::size_t>(0);
   }
 }
 

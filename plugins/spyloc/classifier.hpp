@@ -42,6 +42,9 @@ class LosClassifier {
              double censor_s = 0.2);
   /// [main] Reads a model file; throws std::runtime_error naming the file and field on any problem.
   void load(const std::string& path);
+  /// [main] The same from the file's text; `name` names it in errors. A refused file leaves the
+  /// model as it was (as does a refused train()).
+  void load_text(const std::string& text, const std::string& name);
   /// [main] Writes the model (YAML); `note` goes into trained_on.
   void save(const std::string& path, const std::string& note) const;
   bool ready() const noexcept { return !los_.empty(); }
@@ -52,6 +55,7 @@ class LosClassifier {
   std::size_t trained_nlos() const noexcept { return n_nlos_; }
 
  private:
+  void parse(const std::string& text, const std::string& name);
   double censor(float v) const noexcept;
   std::vector<Mixture1d> los_, nlos_;
   double prior_los_ = 0.5;

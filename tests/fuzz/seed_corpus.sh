@@ -37,7 +37,7 @@ case "$target" in
   link)
     "$bin/locus_fuzz_seeds" "$out" ;;
   model)
-    cp "$root"/config/*-envaware.yaml "$out"/ ;;
+    cp "$root"/config/*-envaware.yaml "$root"/config/spyloc-los.yaml "$out"/ ;;
   *)
     echo "seed_corpus.sh: unknown target '$target'" >&2; exit 2 ;;
 esac

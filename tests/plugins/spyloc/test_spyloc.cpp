@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -135,7 +136,39 @@ TEST(SpyLocClassifier, SeparatesKnownClassesAndRoundTripsItsFile) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("cannot read"), std::string::npos) << e.what();
   }
+  const double p_before = c.p_los(nlos_t[0]);
   EXPECT_THROW(c.train(los, make(0.04, 0.01, 5, 0.0), 4), std::invalid_argument);
+  EXPECT_EQ(c.p_los(nlos_t[0]), p_before) << "a refused training changed the model";
+  // Malformed texts (what a fuzzer or a hand edit makes): a clear error naming the field, nothing
+  // else escaping (a scalar `trained_on` once leaked yaml-cpp's own exception).
+  const std::string good = [&] {
+    LosClassifier fresh;
+    fresh.train(los, nlos, 4);
+    fresh.save(path, "test");
+    std::ifstream f(path);
+    std::stringstream ss;
+    ss << f.rdbuf();
+    std::filesystem::remove(path);
+    return ss.str();
+  }();
+  LosClassifier e;
+  EXPECT_NO_THROW(e.load_text(good, "m.yaml"));
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {good.substr(0, good.find("trained_on")) + "trained_on: 7\n" + good.substr(good.find("los:\n")), "field 'trained_on'"},
+      {"[", "m.yaml': not YAML"},
+      {"", "field '(top)'"},
+      {"format: locus-spyloc-los/2\n", "field 'format'"},
+  };
+  for (const auto& [text, want] : bad) {
+    try {
+      e.load_text(text, "m.yaml");
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const std::runtime_error& err) {
+      EXPECT_NE(std::string(err.what()).find(want), std::string::npos) << err.what();
+    }
+    EXPECT_TRUE(e.ready()) << "a refused file changed the loaded model";
+    EXPECT_EQ(e.trained_los(), 200u);
+  }
 }
 
 // The dead-reckoning tracker learns the heading offset and the stride scale from single ranges: the
