@@ -14,6 +14,7 @@
 #include "locus/events.hpp"
 #include "spyloc/classifier.hpp"
 #include "spyloc/spyloc.hpp"
+#include "support/spyloc_beacons.hpp"
 #include "support/test_host.hpp"
 
 namespace {
@@ -30,7 +31,7 @@ struct NullPublisher final : Publisher {
 /// sync + beep + decay features every 0.333 s (beacons in turn).
 class Walk {
  public:
-  explicit Walk(Localizer& loc) : loc_(loc) {}
+  Walk(Localizer& loc, const test::SpyLocBeacons& beacons) : loc_(loc), beacons_(beacons) {}
   /// Feeds events up to time t; returns the number of beeps fed.
   int until(double t) {
     int beeps = 0;
@@ -54,19 +55,20 @@ class Walk {
         next_step_ += 0.55;
       }
       if (now_ >= next_beep_) {
-        const int i = beep_++ % 3;
+        const std::size_t i = static_cast<std::size_t>(beep_++ % 3);
+        const auto& a = beacons_.anchors_m[i];
         const double x = 12.0 + 4.0 * std::cos(phi), y = 8.0 + 4.0 * std::sin(phi);
-        const double r = std::sqrt(std::pow(x - kB[i][0], 2) + std::pow(y - kB[i][1], 2) + std::pow(1.2 - kB[i][2], 2));
+        const double r = std::sqrt(std::pow(x - a[0], 2) + std::pow(y - a[1], 2) + std::pow(1.2 - a[2], 2));
         RadioSync s;
         s.device = DeviceId("W");
         s.t_s = now_;
-        s.source = NameTag(kIds[i]);
+        s.source = NameTag(test::SpyLocBeacons::id(i));
         loc_.on_event(Event{s}, out_);
         AudioDetection d;
         d.device = DeviceId("W");
         d.sample_rate_hz = 44100.0;
         d.frame = (now_ + 0.05 + r / 343.0) * 44100.0;
-        d.template_index = kMasks[i];
+        d.template_index = beacons_.mask(i);
         loc_.on_event(Event{d}, out_);
         DecayFeatures f;
         f.device = d.device;
@@ -82,39 +84,17 @@ class Walk {
   double now() const { return now_; }
   std::size_t estimates() const { return out_.n; }
 
-  static constexpr double kB[3][3] = {{1.5, 1.5, 2.5}, {22.5, 1.5, 2.5}, {12.0, 14.5, 2.5}};
-  static constexpr const char* kIds[3] = {"B1", "B2", "B3"};
-  static constexpr std::uint16_t kMasks[3] = {0b100010001, 0b1000001010, 0b11100100};  // tone i = bit (f - 18000) / 250
-
  private:
   Localizer& loc_;
+  const test::SpyLocBeacons& beacons_;
   NullPublisher out_;
   double now_ = 0.0, next_att_ = 0.0, next_step_ = 0.55, next_beep_ = 0.2;
   int beep_ = 0;
 };
 
-std::vector<SceneSignal> scene() {
-  const std::vector<std::vector<double>> tones = {{18000, 19000, 20000}, {18250, 18750, 20250}, {18500, 19250, 19500, 19750}};
-  std::vector<SceneSignal> out;
-  for (int i = 0; i < 3; ++i) {
-    SceneSignal s;
-    s.id = Walk::kIds[i];
-    s.signal.type = "multitone";
-    s.signal.tones_hz = tones[static_cast<std::size_t>(i)];
-    s.signal.duration_s = 0.06;
-    s.signal.sync_delay_s = 0.05;
-    s.has_anchor = true;
-    s.anchor_m = {Walk::kB[i][0], Walk::kB[i][1], Walk::kB[i][2]};
-    out.push_back(s);
-  }
-  return out;
-}
-
 void BM_SpyLocUpdatePerBeep(benchmark::State& state) {
   test::TestHost host;
-  const std::vector<SceneSignal> emits = scene();
-  DeviceGeometry g;
-  g.scene_emits = emits;
+  const test::SpyLocBeacons beacons;
   // A LoS/NLoS model as `locus train spyloc` writes it (two well-separated classes).
   std::vector<sp::DecayVector> los(40), nlos(40);
   std::mt19937 rng(9);
@@ -131,9 +111,9 @@ void BM_SpyLocUpdatePerBeep(benchmark::State& state) {
   Params p = Params::defaults(sp::schema());
   p.set("los_model", model);
   p.set("speed_of_sound_mps", 343.0);
-  HostContext ctx{host.log, host.clock, host.fft, host.link, "spyloc", "W", &g};
+  HostContext ctx{host.log, host.clock, host.fft, host.link, "spyloc", "W", &beacons.geometry};
   loc->configure(p, ctx);
-  Walk walk(*loc);
+  Walk walk(*loc, beacons);
   walk.until(20.0);  // warm-up: fix, dead reckoning started, hypotheses weighed
   int beeps = 0;
   for (auto _ : state) beeps += walk.until(walk.now() + 1.0);

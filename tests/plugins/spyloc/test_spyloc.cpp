@@ -20,6 +20,7 @@
 #include "spyloc/solver.hpp"
 #include "spyloc/spyloc.hpp"
 #include "spyloc/tracker.hpp"
+#include "support/spyloc_beacons.hpp"
 #include "support/test_host.hpp"
 
 namespace locus {
@@ -216,22 +217,9 @@ struct Pub : Publisher {
 TEST(SpyLocPlugin, EndToEndOnSyntheticEvents) {
   test::TestHost host;
   FftwPlanner fftw({}, false);
-  std::vector<SceneSignal> scene;
-  const std::vector<std::array<double, 3>> b = {{1.5, 1.5, 2.5}, {22.5, 1.5, 2.5}, {12.0, 14.5, 2.5}};
-  const std::vector<std::vector<double>> tones = {{18000, 19000, 20000}, {18250, 18750, 20250}, {18500, 19250, 19500, 19750}};
-  for (int i = 0; i < 3; ++i) {
-    SceneSignal s;
-    s.id = "B" + std::to_string(i + 1);
-    s.signal.type = "multitone";
-    s.signal.tones_hz = tones[static_cast<std::size_t>(i)];
-    s.signal.duration_s = 0.06;
-    s.signal.sync_delay_s = 0.05;
-    s.has_anchor = true;
-    s.anchor_m = b[static_cast<std::size_t>(i)];
-    scene.push_back(s);
-  }
-  DeviceGeometry g;
-  g.scene_emits = scene;
+  const test::SpyLocBeacons beacons;
+  const auto& b = beacons.anchors_m;
+  const DeviceGeometry& g = beacons.geometry;
   // A classifier that knows short decays = LoS.
   std::vector<DecayVector> los(40), nlos(40);
   std::mt19937 rng(9);
@@ -252,11 +240,7 @@ TEST(SpyLocPlugin, EndToEndOnSyntheticEvents) {
   HostContext ctx{host.log, host.clock, fftw, host.link, "spyloc", "W", &g};
   loc->configure(p, ctx);
   Pub out;
-  auto mask = [&](int i) {
-    std::uint16_t m = 0;
-    for (double f : tones[static_cast<std::size_t>(i)]) m |= static_cast<std::uint16_t>(1u << static_cast<int>((f - 18000) / 250));
-    return m;
-  };
+  auto mask = [&](int i) { return beacons.mask(static_cast<std::size_t>(i)); };
   std::vector<double> errs;
   for (int k = 0; k < 120; ++k) {
     const double t = 0.5 + 0.333 * k;
@@ -306,27 +290,10 @@ TEST(SpyLocPlugin, EndToEndOnSyntheticEvents) {
 TEST(SpyLocPlugin, DeadReckoningCarriesTheTrackOnOneBeacon) {
   test::TestHost host;
   FftwPlanner fftw({}, false);
-  const std::vector<std::array<double, 3>> b = {{1.5, 1.5, 2.5}, {22.5, 1.5, 2.5}, {12.0, 14.5, 2.5}};
-  const std::vector<std::vector<double>> tones = {{18000, 19000, 20000}, {18250, 18750, 20250}, {18500, 19250, 19500, 19750}};
-  std::vector<SceneSignal> scene;
-  for (int i = 0; i < 3; ++i) {
-    SceneSignal s;
-    s.id = "B" + std::to_string(i + 1);
-    s.signal.type = "multitone";
-    s.signal.tones_hz = tones[static_cast<std::size_t>(i)];
-    s.signal.duration_s = 0.06;
-    s.signal.sync_delay_s = 0.05;
-    s.has_anchor = true;
-    s.anchor_m = b[static_cast<std::size_t>(i)];
-    scene.push_back(s);
-  }
-  DeviceGeometry g;
-  g.scene_emits = scene;
-  auto mask = [&](int i) {
-    std::uint16_t m = 0;
-    for (double f : tones[static_cast<std::size_t>(i)]) m |= static_cast<std::uint16_t>(1u << static_cast<int>((f - 18000) / 250));
-    return m;
-  };
+  const test::SpyLocBeacons beacons;
+  const auto& b = beacons.anchors_m;
+  const DeviceGeometry& g = beacons.geometry;
+  auto mask = [&](int i) { return beacons.mask(static_cast<std::size_t>(i)); };
   // The walk: 1.2 m/s east for 10 s, north for 10 s, west for 10 s; a step every 0.55 s.
   auto phi_at = [](double t) { return t < 10.0 ? 0.0 : t < 20.0 ? M_PI / 2 : M_PI; };
   auto pos_at = [](double t) {
