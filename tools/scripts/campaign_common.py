@@ -1,6 +1,9 @@
-"""Shared by the campaign scripts (tools/scripts/*_campaign.py): seed lists, running a locus command,
-percentiles. Import with the scripts' folder on sys.path (they are run as files, so it is)."""
+"""Shared by the campaign and measuring scripts (tools/scripts/*_campaign.py, map_measure.py) and the
+map's browser test: seed lists, running a locus command, percentiles, stopping a process group.
+Import with the scripts' folder on sys.path (scripts run as files here have it)."""
 import math
+import os
+import signal
 import subprocess
 import sys
 
@@ -34,3 +37,19 @@ def pct(v, q):
     f = math.floor(k)
     c = min(f + 1, len(v) - 1)
     return v[f] + (v[c] - v[f]) * (k - f)
+
+
+def kill_group(proc):
+    """Stops a child started with start_new_session=True, and its children: SIGTERM to the group,
+    SIGKILL after 10 s; nothing when it is None or already ended."""
+    if proc is None or proc.poll() is not None:
+        return
+    try:
+        os.killpg(proc.pid, signal.SIGTERM)
+        proc.wait(timeout=10)
+    except (subprocess.TimeoutExpired, ProcessLookupError):
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        proc.wait()
