@@ -5,21 +5,15 @@
 #   foreign_scenes.sh LOCUS_BIN SOURCE_DIR SCENES_DIR
 set -euo pipefail
 locus="$1"; src="$2"; scenes="$3"
-if [ ! -d "$scenes" ]; then
-  if [ "${CI:-}" = "true" ]; then echo "foreign scenes folder $scenes is missing (CI=true: failure)"; exit 1; fi
-  echo "foreign scenes folder $scenes is missing: skipped"; exit 77
-fi
+source "$(dirname "$0")/foreign_common.sh"
+require_scenes "$scenes"
 tmp="$(mktemp -d /tmp/locus-foreign.XXXXXX)"
 trap 'rm -rf "$tmp"' EXIT
 fail=0; ran=0
 for sc in "$scenes"/*/; do
   sc="${sc%/}"; name="$(basename "$sc")"
   [ -f "$sc/scene.yaml" ] || continue
-  # environment.family, read with a YAML parser (block or flow style: "environment: {family: x, ...}")
-  family="$(/usr/bin/python3 -c 'import sys, yaml
-d = yaml.safe_load(open(sys.argv[1])) or {}
-e = d.get("environment") if isinstance(d, dict) else None
-print(e.get("family", "") if isinstance(e, dict) else "")' "$sc/scene.yaml")"
+  family="$(scene_family "$sc")"
   if [ -z "$family" ]; then echo "[$name] no environment.family in scene.yaml: not scored"; continue; fi
   cfg="$src/config/$family.yaml"; bars="$src/tests/foreign/bars/$family.args"
   if [ ! -f "$cfg" ] || [ ! -f "$bars" ]; then echo "[$name] family '$family' has no localizer yet: not scored"; continue; fi
@@ -27,7 +21,7 @@ print(e.get("family", "") if isinstance(e, dict) else "")' "$sc/scene.yaml")"
   if ! timeout 300 "$locus" replay "$sc" --config "$cfg" --speed max -o "$tmp/$name.jsonl" 2>"$tmp/$name.log"; then
     echo "[$name] locus replay failed:"; tail -20 "$tmp/$name.log"; fail=1; continue
   fi
-  mapfile -t args < <(grep -v '^[[:space:]]*#' "$bars" | tr ' ' '\n' | grep -v '^$')
+  read_bars "$bars"
   status=0
   timeout 120 "$locus" eval "$sc" "$tmp/$name.jsonl" --metric "$family" "${args[@]}" >"$tmp/$name.eval.txt" 2>&1 || status=$?
   if [ "$status" -ne 0 ]; then

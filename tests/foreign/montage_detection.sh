@@ -7,21 +7,16 @@
 #   montage_detection.sh LOCUS_BIN SOURCE_DIR SCENES_DIR
 set -euo pipefail
 locus="$1"; src="$2"; scenes="$3"
-if [ ! -d "$scenes" ]; then
-  if [ "${CI:-}" = "true" ]; then echo "foreign scenes folder $scenes is missing (CI=true: failure)"; exit 1; fi
-  echo "foreign scenes folder $scenes is missing: skipped"; exit 77
-fi
+source "$(dirname "$0")/foreign_common.sh"
+require_scenes "$scenes"
 tmp="$(mktemp -d /tmp/locus-montage-det.XXXXXX)"
 trap 'rm -rf "$tmp"' EXIT
-mapfile -t args < <(grep -v '^[[:space:]]*#' "$src/tests/foreign/bars/montage-detection.args" | tr ' ' '\n' | grep -v '^$')
+read_bars "$src/tests/foreign/bars/montage-detection.args"
 fail=0; ran=0
 for sc in "$scenes"/*/; do
   sc="${sc%/}"; name="$(basename "$sc")"
   [ -f "$sc/scene.yaml" ] || continue
-  family="$(/usr/bin/python3 -c 'import sys, yaml
-d = yaml.safe_load(open(sys.argv[1])) or {}
-e = d.get("environment") if isinstance(d, dict) else None
-print(e.get("family", "") if isinstance(e, dict) else "")' "$sc/scene.yaml")"
+  family="$(scene_family "$sc")"
   [ "$family" = "montage" ] || continue
   ran=$((ran + 1))
   if ! timeout 300 "$locus" replay "$sc" --config "$src/config/montage-detect.yaml" --speed max -o "$tmp/$name.jsonl" 2>"$tmp/$name.log"; then
