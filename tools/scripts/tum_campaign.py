@@ -18,32 +18,11 @@ import argparse, bisect, csv, json, math, os, subprocess, sys
 
 import yaml
 
-
-def parse_seeds(s):
-    out = []
-    for part in filter(None, s.split(',')):
-        if '-' in part:
-            a, b = part.split('-')
-            out += list(range(int(a), int(b) + 1))
-        else:
-            out.append(int(part))
-    return out
+from campaign_common import parse_seeds, pct, run as run_checked
 
 
 def run(cmd):
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    if r.returncode not in (0, 4):
-        sys.exit(f"tum_campaign: {' '.join(cmd)} failed ({r.returncode}):\n{r.stderr[-2000:]}")
-    return r
-
-
-def pct(v, q):
-    if not v:
-        return float('nan')
-    s = sorted(v)
-    k = (len(s) - 1) * q
-    lo, hi = math.floor(k), math.ceil(k)
-    return s[lo] + (s[hi] - s[lo]) * (k - lo)
+    return run_checked(cmd, 'tum_campaign')
 
 
 def qrot(q, v):
