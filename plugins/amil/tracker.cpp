@@ -137,7 +137,9 @@ void GestureTracker::end_bin() {
       // Movement: starts (conservatively) at the previous bin, which is not part of the rest.
       const double start = prev_bin_.empty() ? bin_.front().t : prev_bin_.front().t;
       move_.clear();
-      for (const Sample& s : rest_tail_) move_.push_back(s);  // the rest before: zero-mean velocity
+      const double keep_from = rest_tail_.empty() ? 0.0 : rest_tail_.back().t - cfg_.rest_window_s;
+      for (const Sample& s : rest_tail_)  // the rest before (at most rest_window_s): zero-mean velocity
+        if (s.t >= keep_from) move_.push_back(s);
       for (const Sample& s : prev_bin_) move_.push_back(s);
       for (const Sample& s : bin_) move_.push_back(s);
       active_start_ = bin_start_;
@@ -206,7 +208,16 @@ void GestureTracker::start_movement(double t_start) {
   quiet_run_ = 0;
   move_start_ = t_start;
   const double rest_len = rest_n_ > 0 ? t_start - rest_start_ : 0.0;
-  if (rest_n_ > 0) gyro_bias_ = rest_w_sum_ / static_cast<double>(rest_n_);
+  // Gyro bias: the mean rate over every rest of the session so far (the bias barely moves over a
+  // gesture, ~1e-4 rad/s per √s, while a hand's rotational tremor leaves ~3e-3 rad/s in the mean of
+  // one short pause: pooling the rests keeps that out of the heading). A new session starts the pool.
+  if (!session_open_) {
+    bias_w_sum_.setZero();
+    bias_n_ = 0;
+  }
+  bias_w_sum_ += rest_w_sum_;
+  bias_n_ += rest_n_;
+  if (bias_n_ > 0) gyro_bias_ = bias_w_sum_ / static_cast<double>(bias_n_);
   if (rest_n_ > 1) {
     // Per-axis sample variance at rest (the horizontal axes' mean is what the integration sees).
     const double n = static_cast<double>(rest_n_);
@@ -340,8 +351,14 @@ void GestureTracker::end_movement(double t_end) {
     s.movements.push_back(std::move(m));
     s.pauses.push_back(next);
   }
-  move_.clear();
+  // The movement's quiet bins (after its last moving bin) are rest as well: they open the next
+  // movement's lead rest, so a short pause (0.3 s, of which the quiet bins and the next movement's
+  // one-bin margin take most) still gives that movement a zero-mean-velocity window instead of the
+  // two-instant rule, which pins a trembling hand's velocity (a few mm/s) at one instant.
   rest_tail_.clear();
+  for (const Sample& smp : move_)
+    if (smp.t >= active_end_) rest_tail_.push_back(smp);
+  move_.clear();
   // A new rest starts after the movement.
   rest_start_ = t_end;
   rest_a_sum_.setZero();

@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "locus/sim/motion/gesture.hpp"
@@ -38,7 +39,9 @@ struct SimGesture {
 
 /// The `amil` family's gesture: triangle of side `side_m`, `gestures` times, on a table; IMU noise
 /// scaled by `imu_scale` (normal 1, hard 2). Heading: random (the tracker must not care).
-inline SimGesture make_gesture(std::uint64_t seed, int gestures = 1, double imu_scale = 1.0, double side_m = 0.305) {
+/// `pause_s`: the shortest and longest pause at a corner (the paper's 0.4-0.7 s by default).
+inline SimGesture make_gesture(std::uint64_t seed, int gestures = 1, double imu_scale = 1.0, double side_m = 0.305,
+                               std::pair<double, double> pause_s = {0.4, 0.7}) {
   using namespace locus::sim;
   motion::GestureParams g;
   g.waypoints_m = {{0.0, 0.0}};
@@ -52,8 +55,8 @@ inline SimGesture make_gesture(std::uint64_t seed, int gestures = 1, double imu_
   Rng layout(seed * 7 + 3);
   g.device_heading_rad = layout.uniform(0.0, 2.0 * M_PI);
   g.plane_yaw_rad = g.device_heading_rad - M_PI / 2;  // the triangle drawn in the phone's own axes
-  g.pause_min_s = 0.4;
-  g.pause_max_s = 0.7;
+  g.pause_min_s = pause_s.first;
+  g.pause_max_s = pause_s.second;
   SimGesture out;
   out.traj = std::make_shared<motion::GestureTrajectory>(g, 1.0, seed ^ 0xA311u);
   motion::PhoneImuConfig ic;
