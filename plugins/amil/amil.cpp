@@ -112,6 +112,7 @@ class AmilLocalizer final : public Localizer {
     if (position_std_auto_) solver_.position_std_m = 0.01;  // unused: every beep carries the tracker's
     solver_.known_skew = params.get_float("known_skew_ppm") * 1e-6;
     solver_.max_range_m = params.get_float("max_range_m");
+    solver_.min_session_factor = params.get_float("min_noise_factor");
     match_tolerance_s_ = params.get_float("match_tolerance_s");
     min_beeps_ = static_cast<int>(params.get_int("min_beeps"));
     listener_wait_s_ = params.get_float("listener_wait_s");
@@ -378,10 +379,12 @@ class AmilLocalizer final : public Localizer {
     // the network method: the listeners share the beep positions).
     std::vector<std::string> ids;
     std::vector<amil::ListenerArrivals> arrs;
+    std::vector<amil::CycleAlternative> alts;
     for (const auto& [id, l] : listeners_) {
       if (done_set.count(id) || l.arrivals_s.empty()) continue;
       int matched = 0;
       amil::ListenerArrivals arr;
+      amil::CycleAlternative alt;  // resolve_cycles()'s runner-up, solved too (cycle_mixture())
       arr.arrival_s = amil::match_arrivals(times, l.arrivals_s, match_tolerance_s_, &matched);
       // Per-arrival timing error: the base error plus, for a detection unsure of its carrier cycle
       // (confidence < 1: the multipath fit disagreed), that fraction of a cycle. Then the carrier
@@ -414,7 +417,8 @@ class AmilLocalizer final : public Localizer {
                                                             solver_.timing_std_s * solver_.timing_std_s));
           arr.arrival_std_s[k] = solver_.timing_std_s;
         }
-        const int moved = amil::resolve_cycles(beeps, arr, solver_);
+        const bool mixture = solver_.method != amil::Method::Network;  // network: half-cycle stds, as before
+        const int moved = amil::resolve_cycles(beeps, arr, solver_, {}, mixture ? &alt : nullptr);
         if (moved > 0)
           log_->debug(tag + ": listener " + id + ": " + std::to_string(moved) + " arrival(s) moved by whole carrier cycles");
       }
@@ -427,6 +431,7 @@ class AmilLocalizer final : public Localizer {
       }
       ids.push_back(id);
       arrs.push_back(std::move(arr));
+      alts.push_back(std::move(alt));
     }
     std::vector<amil::Solution> sols(ids.size());
     try {
@@ -436,7 +441,10 @@ class AmilLocalizer final : public Localizer {
         log_->info(tag + ": network of " + std::to_string(ns.listeners_in_network) + " listeners" +
                    (ns.note.empty() ? std::string() : " (" + ns.note + ")"));
       } else {
-        for (std::size_t i = 0; i < ids.size(); ++i) sols[i] = amil::solve(beeps, arrs[i], solver_);
+        for (std::size_t i = 0; i < ids.size(); ++i) {
+          sols[i] = amil::solve(beeps, arrs[i], solver_);
+          amil::cycle_mixture(beeps, arrs[i], alts[i], solver_, sols[i]);
+        }
         // One listener's fit has ~1 degree of freedom: scale the uncertainty by the session's pooled
         // residuals and flag listeners far beyond them (solver.hpp calibrate_session()).
         const double factor = amil::calibrate_session(sols, solver_);
@@ -563,8 +571,11 @@ const ParamSchema& schema() {
                   "Beep position error per axis (1 sigma) assumed by the solver; 0 = the tracker's own error model per beep."),
       float_param("accel_scale_error", 0.003, 0.0, 0.2, "",
                   "Tracker error model: relative accelerometer scale + cross-axis error (1 sigma)."),
-      float_param("drift_shape_factor", 0.05, 0.0, 10.0, "",
+      float_param("drift_shape_factor", 0.01, 0.0, 10.0, "",
                   "Tracker error model: residual of the linear velocity de-drift as a fraction of v_end*T (1 sigma)."),
+      float_param("min_noise_factor", 1.0, 0.05, 1.0, "",
+                  "Lowest session noise factor (the listeners' pooled chi2/dof that scales every covariance); "
+                  "below 1 the noise model may shrink when the residuals are smaller than it says."),
       float_param("position_floor_m", 0.0005, 0.0, 0.1, "m", "Tracker error model: per-axis floor of a pause position (1 sigma)."),
       float_param("known_skew_ppm", 0.0, -1000.0, 1000.0, "ppm", "paper method: the listeners' calibrated clock skew."),
       float_param("max_range_m", 30.0, 0.5, 1000.0, "m", "Farther solutions are reported as a direction only."),

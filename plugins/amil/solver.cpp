@@ -633,7 +633,8 @@ void validate(const std::vector<Beep>& beeps, const ListenerArrivals& arr, const
 }  // namespace
 
 int resolve_cycles(const std::vector<Beep>& beeps, ListenerArrivals& arr, const SolverConfig& cfg,
-                   const CycleOptions& opt) {
+                   const CycleOptions& opt, CycleAlternative* alternative) {
+  if (alternative != nullptr) *alternative = CycleAlternative{};
   const double P = arr.carrier_period_s;
   if (!(P > 0.0) || arr.cycle_offset_s.size() != arr.arrival_s.size() || arr.arrival_s.size() != beeps.size())
     return 0;
@@ -666,8 +667,8 @@ int resolve_cycles(const std::vector<Beep>& beeps, ListenerArrivals& arr, const 
     const double cP = o.c * P;
     // cy_k is relative to the first heard arrival: shifting arrival k by m_k periods adds c P (m_k - m_0)
     // to it, so m_0 = 0 and m_k in [-max_shift, max_shift].
-    struct Score { double chi2; std::vector<int> m; };
-    Score best{std::numeric_limits<double>::infinity(), {}}, second{std::numeric_limits<double>::infinity(), {}};
+    struct Score { double chi2; std::vector<int> m; double env; };
+    Score best{std::numeric_limits<double>::infinity(), {}, 0.0}, second{std::numeric_limits<double>::infinity(), {}, 0.0};
     std::vector<int> m(static_cast<std::size_t>(n), 0);
     Eigen::VectorXd rn(n);
     const int combos = static_cast<int>(std::lround(std::pow(static_cast<double>(base), n - 1)));
@@ -691,15 +692,27 @@ int resolve_cycles(const std::vector<Beep>& beeps, ListenerArrivals& arr, const 
       const double chi2 = std::max(0.0, geo) + env;
       if (chi2 < best.chi2) {
         second = std::move(best);
-        best = {chi2, m};
+        best = {chi2, m, env};
       } else if (chi2 < second.chi2) {
-        second = {chi2, m};
+        second = {chi2, m, env};
       }
     }
     doubtful.clear();
-    if (second.chi2 - best.chi2 < opt.decisive_chi2)
+    if (alternative != nullptr) *alternative = CycleAlternative{};
+    if (second.chi2 - best.chi2 < opt.decisive_chi2) {
       for (int k = 0; k < n; ++k)
         if (best.m[static_cast<std::size_t>(k)] != second.m[static_cast<std::size_t>(k)]) doubtful.push_back(o.index[static_cast<std::size_t>(k)]);
+      if (alternative != nullptr && !doubtful.empty()) {
+        // relative to the arrivals once the best shifts are applied (below)
+        alternative->valid = true;
+        alternative->delta_chi2 = second.chi2 - best.chi2;
+        alternative->delta_envelope_chi2 = second.env - best.env;
+        alternative->shift_s.assign(arr.arrival_s.size(), 0.0);
+        for (int k = 0; k < n; ++k)
+          alternative->shift_s[static_cast<std::size_t>(o.index[static_cast<std::size_t>(k)])] =
+              (second.m[static_cast<std::size_t>(k)] - best.m[static_cast<std::size_t>(k)]) * P;
+      }
+    }
     bool changed = false;
     for (int k = 1; k < n; ++k) {
       const int mk = best.m[static_cast<std::size_t>(k)];
@@ -712,13 +725,39 @@ int resolve_cycles(const std::vector<Beep>& beeps, ListenerArrivals& arr, const 
     }
     if (!changed) break;
   }
-  for (int i : doubtful) {
-    const auto iu = static_cast<std::size_t>(i);
-    arr.arrival_std_s[iu] = std::max(arr.arrival_std_s[iu], std::hypot(tstd, 0.5 * P));
+  if (alternative == nullptr) {
+    for (int i : doubtful) {
+      const auto iu = static_cast<std::size_t>(i);
+      arr.arrival_std_s[iu] = std::max(arr.arrival_std_s[iu], std::hypot(tstd, 0.5 * P));
+    }
   }
   int moved = 0;
   for (int s : shift) moved += s != 0 ? 1 : 0;
   return moved;
+}
+
+void cycle_mixture(const std::vector<Beep>& beeps, const ListenerArrivals& arrivals, const CycleAlternative& alt,
+                   const SolverConfig& cfg, Solution& best) {
+  if (!alt.valid || alt.shift_s.size() != arrivals.arrival_s.size()) return;
+  if (!best.fit_position_m.allFinite() || !best.fit_covariance_m2.allFinite()) return;
+  ListenerArrivals other = arrivals;
+  for (std::size_t k = 0; k < other.arrival_s.size(); ++k) {
+    other.arrival_s[k] += alt.shift_s[k];
+    if (k < other.cycle_offset_s.size()) other.cycle_offset_s[k] += alt.shift_s[k];
+  }
+  const Solution s2 = solve(beeps, other, cfg);
+  if (!s2.fit_position_m.allFinite() || !s2.fit_covariance_m2.allFinite()) return;
+  if (s2.fit_position_m.norm() > cfg.max_range_m) {
+    best.note += "cycle runner-up beyond max_range_m: ignored; ";
+    return;
+  }
+  const double delta = std::isfinite(s2.chi2) && std::isfinite(best.chi2)
+                           ? s2.chi2 - best.chi2 + alt.delta_envelope_chi2
+                           : alt.delta_chi2;
+  const double w = 1.0 / (1.0 + std::exp(std::clamp(0.5 * delta, -50.0, 50.0)));
+  const Eigen::Vector2d d = s2.fit_position_m - best.fit_position_m;
+  best.fit_covariance_m2 = (1.0 - w) * best.fit_covariance_m2 + w * (s2.fit_covariance_m2 + d * d.transpose());
+  best.note += "cycle runner-up " + std::to_string(d.norm()) + " m away (weight " + std::to_string(w) + "); ";
 }
 
 const char* to_string(Method m) noexcept {
@@ -1311,7 +1350,7 @@ double calibrate_session(std::vector<Solution>& listeners, const SolverConfig& c
     sum_chi2 += s.chi2;
     sum_dof += s.dof;
   }
-  const double factor = sum_dof >= 3 ? std::max(1.0, sum_chi2 / sum_dof) : 1.0;
+  const double factor = sum_dof >= 3 ? std::max(cfg.min_session_factor, sum_chi2 / sum_dof) : 1.0;
   for (Solution& s : listeners) {
     if (s.dof <= 0 || !std::isfinite(s.chi2) || !s.fit_covariance_m2.allFinite() || !s.fit_position_m.allFinite()) continue;
     if (s.status == Status::Failed) continue;

@@ -112,6 +112,7 @@ struct SolverConfig {
   double min_range_m = 0.05;               ///< solutions closer than this are rejected
   double max_range_m = 30.0;               ///< solutions farther than this: distance not determined
   double max_relative_distance_std = 1.0;  ///< distance_std / distance above this: direction-only result
+  double min_session_factor = 1.0;         ///< calibrate_session(): lowest variance factor (< 1: the noise model may shrink)
   int max_iterations = 50;
 };
 
@@ -205,6 +206,16 @@ double calibrate_session(std::vector<Solution>& listeners, const SolverConfig& c
 /// When a combination with other shifts scores within `decisive_chi2` of the best, the arrivals where
 /// they differ keep a doubtful cycle: their arrival_std_s is raised to at least half a period (they
 /// then do not count as reliable). Returns the number of arrivals moved (0 when not applicable).
+/// With `alternative` given, the doubtful arrivals keep their std instead and the runner-up is returned
+/// there, for the caller to solve both and widen the answer by their spread (cycle_mixture()): a
+/// discrete ambiguity of whole cycles is not a Gaussian half-cycle error, and treating it as one threw
+/// away distances that both hypotheses agree on.
+struct CycleAlternative {
+  bool valid = false;              ///< a runner-up within decisive_chi2 exists
+  std::vector<double> shift_s;     ///< per arrival (caller index): add to arrival_s for the runner-up
+  double delta_chi2 = 0.0;         ///< its score minus the best's (>= 0), linearised at the best fit
+  double delta_envelope_chi2 = 0.0;  ///< the envelope prior's part of delta_chi2
+};
 struct CycleOptions {
   double envelope_std_periods = 0.35;  ///< beep-to-beep jitter of the envelope-to-phase offset (periods)
   double decisive_chi2 = 4.0;          ///< a runner-up closer than this leaves the differing cycles doubtful
@@ -212,7 +223,15 @@ struct CycleOptions {
   int max_rounds = 3;
 };
 int resolve_cycles(const std::vector<Beep>& beeps, ListenerArrivals& arrivals, const SolverConfig& cfg,
-                   const CycleOptions& opt = {});
+                   const CycleOptions& opt = {}, CycleAlternative* alternative = nullptr);
+
+/// The runner-up of resolve_cycles() solved too, and `best`'s fit covariance replaced by the two
+/// hypotheses' mixture about the best point: (1 − w)·P_best + w·(P_alt + d·dᵀ), d = alt − best,
+/// w = 1 / (1 + exp(Δχ²/2)) with Δχ² from the two refits (their residual chi² plus the envelope
+/// prior's difference). A no-op when the alternative is not valid, does not solve, or solves beyond
+/// max_range_m (a flat wavefront: no listener of the session can be there).
+void cycle_mixture(const std::vector<Beep>& beeps, const ListenerArrivals& arrivals, const CycleAlternative& alternative,
+                   const SolverConfig& cfg, Solution& best);
 
 /// The closed form of one 3-beep subset (Sec. II-E, Eq. 1): listener x with |x − p_j| − |x − p_i| =
 /// dd_j and |x − p_k| − |x − p_i| = dd_k. Returns 0, 1 or 2 points (any frame). Exposed for tests.

@@ -75,7 +75,7 @@ struct TrackerConfig {
   Eigen::Vector3d speaker_body_m = Eigen::Vector3d::Zero();  ///< speaker in the body frame (geometry)
   // Uncertainty model of the tracked positions (see "Uncertainty" above).
   double accel_scale_error = 0.003;     ///< relative scale + cross-axis error of the accelerometer (1 sigma)
-  double drift_shape_factor = 0.05;     ///< residual of the linear de-drift, as a fraction of v_end·T (1 sigma)
+  double drift_shape_factor = 0.01;     ///< residual of the linear de-drift, as a fraction of v_end·T (1 sigma)
   double position_floor_m = 0.0005;     ///< error of a pause position that no term models (hand wiggle), per axis
   double rest_window_s = 0.3;           ///< rest integrated on each side of a movement (zero-mean velocity, below)
 };
