@@ -29,7 +29,8 @@ struct Fixture {
   HostContext ctx() { return HostContext{host.log, host.clock, fftw, host.link, "gold", "A"}; }
 };
 
-std::unique_ptr<Detector> make(Fixture& f, const Params& p, std::uint32_t max_block = 1024, std::uint32_t channels = 1) {
+std::unique_ptr<Detector> make(Fixture& f, const Params& p, std::uint32_t max_block = 1024, std::uint32_t channels = 1,
+                               const DeviceGeometry* geometry = nullptr) {
   std::unique_ptr<Detector> d(plugins::goldcode::descriptor()->create_detector());
   StreamInfo info;
   info.device = DeviceId("A");
@@ -37,6 +38,7 @@ std::unique_ptr<Detector> make(Fixture& f, const Params& p, std::uint32_t max_bl
   info.sample_rate_hz = kFs;
   info.max_block_frames = max_block;
   HostContext ctx = f.ctx();
+  ctx.geometry = geometry;
   d->configure(info, p, ctx);
   return d;
 }
@@ -56,6 +58,23 @@ dsp::SignalSpec gold(int index) {
 // interpolated by a Kaiser-windowed sinc (±64 taps). (SignalEvaluator at fractional times holds the
 // chips on the sample grid: its chip edges move in whole samples while the carrier moves by the
 // fraction, which no physical, band-limited delay does.)
+// Device A of a four-user Montage scene: it emits gold(0), the scene's gold emitters A-D emit gold(0..3)
+// (the geometry goldcode's from_scene and cancel_own read).
+struct MontageDevice {
+  std::vector<SignalSpec> mine = {gold(0)};
+  std::vector<SceneSignal> scene;
+  DeviceGeometry g;
+  MontageDevice() {
+    for (int u = 0; u < 4; ++u) scene.push_back(SceneSignal{std::string(1, static_cast<char>('A' + u)), gold(u), false, {}});
+    g.mic_count = 1;
+    g.has_speaker = true;
+    g.emits = mine;
+    g.scene_emits = scene;
+  }
+  MontageDevice(const MontageDevice&) = delete;
+  MontageDevice& operator=(const MontageDevice&) = delete;
+};
+
 void add_signal(std::vector<float>& x, const dsp::SignalSpec& spec, double delay_frames, double a) {
   const std::vector<float> s = dsp::render_signal(spec, kFs);
   const auto base = static_cast<std::int64_t>(std::floor(delay_frames));
@@ -220,14 +239,7 @@ TEST(Goldcode, MovingUsersFoundWithDopplerSearch) {
 // the own arrival is reported from the canceller's fit.
 TEST(Goldcode, CancelsOwnEmissionAndFindsTheOthers) {
   Fixture f;
-  std::vector<SignalSpec> mine = {gold(0)};
-  std::vector<SceneSignal> scene;
-  for (int u = 0; u < 4; ++u) scene.push_back(SceneSignal{std::string(1, static_cast<char>('A' + u)), gold(u), false, {}});
-  DeviceGeometry g;
-  g.mic_count = 1;
-  g.has_speaker = true;
-  g.emits = mine;
-  g.scene_emits = scene;
+  const MontageDevice dev;
   Params p = Params::defaults(plugins::goldcode::schema());
   p.set("from_scene", true);
   std::mt19937 rng(5);
@@ -250,15 +262,7 @@ TEST(Goldcode, CancelsOwnEmissionAndFindsTheOthers) {
       if (!cancel && trial > 0) break;
       Params q = p;
       q.set("cancel_own", cancel == 1);
-      std::unique_ptr<Detector> d(plugins::goldcode::descriptor()->create_detector());
-      StreamInfo info;
-      info.device = DeviceId("A");
-      info.channels = 1;
-      info.sample_rate_hz = kFs;
-      info.max_block_frames = 1024;
-      HostContext ctx = f.ctx();
-      ctx.geometry = &g;
-      d->configure(info, q, ctx);
+      auto d = make(f, q, 1024, 1, &dev.g);
       const Result r = run(*d, x, 1024);
       std::vector<int> hits(4, 0);
       for (const AudioDetection& det : r.det)
@@ -288,14 +292,7 @@ TEST(Goldcode, CancelsOwnEmissionAndFindsTheOthers) {
 // without the gate and not with it. A gate without an own emission to place the rounds is refused.
 TEST(Goldcode, RoundGateSearchesOnlyAroundTheOwnEmissions) {
   Fixture f;
-  std::vector<SignalSpec> mine = {gold(0)};
-  std::vector<SceneSignal> scene;
-  for (int u = 0; u < 4; ++u) scene.push_back(SceneSignal{std::string(1, static_cast<char>('A' + u)), gold(u), false, {}});
-  DeviceGeometry g;
-  g.mic_count = 1;
-  g.has_speaker = true;
-  g.emits = mine;
-  g.scene_emits = scene;
+  const MontageDevice dev;
   std::mt19937 rng(11);
   std::normal_distribution<float> noise(0.0f, 2e-4f);
   std::vector<float> x(static_cast<std::size_t>(3.6 * kFs));
@@ -326,15 +323,7 @@ TEST(Goldcode, RoundGateSearchesOnlyAroundTheOwnEmissions) {
     Params p = Params::defaults(plugins::goldcode::schema());
     p.set("from_scene", true);
     if (gate) p.set("round_window_s", std::vector<double>{0.06, 0.14});
-    std::unique_ptr<Detector> d(plugins::goldcode::descriptor()->create_detector());
-    StreamInfo info;
-    info.device = DeviceId("A");
-    info.channels = 1;
-    info.sample_rate_hz = kFs;
-    info.max_block_frames = 1024;
-    HostContext ctx = f.ctx();
-    ctx.geometry = &g;
-    d->configure(info, p, ctx);
+    auto d = make(f, p, 1024, 1, &dev.g);
     const Result res = run(*d, x, 1024);
     found[gate] = count(res, inside);
     stray[gate] = count(res, outside);
