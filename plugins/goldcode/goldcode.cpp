@@ -140,6 +140,11 @@ struct Channel {
   std::vector<AudioDetection> pend;               // per code: the detection waiting for its separation
   std::vector<std::size_t> pend_dop;
   std::vector<std::uint8_t> has_pend;
+  // Round gate (round_window_s): the own emissions' fitted starts, newest last (a ring of kOwnKept).
+  static constexpr std::size_t kOwnKept = 8;
+  double own_frames[kOwnKept] = {};
+  std::size_t own_count = 0;
+  double own_known_until = 0.0;  // every own emission starting before this frame is in own_frames
   std::uint64_t end_frame = 0;      // one past the last frame written to `ring`
   double level = 0.0;               // slow average of the window energy (guards near-silent windows)
   bool started = false;
@@ -400,6 +405,22 @@ class GoldcodeDetector final : public Detector {
     }
     canc_started_.assign(channels_, 0);
     canc_seen_.assign(channels_, 0);
+    // Round gate: the protocol makes every user emit once per round, a known time after the radio
+    // start; another user's code can only arrive within [own emission - before, own emission + after].
+    {
+      const std::vector<double>& w = params.get_floats("round_window_s");
+      if (!w.empty() && w.size() != 2)
+        throw std::runtime_error("goldcode: round_window_s must be empty (off) or [before_s, after_s], got " +
+                                 std::to_string(w.size()) + " values");
+      gate_ = w.size() == 2;
+      if (gate_ && !(w[0] + w[1] > 0.0))
+        throw std::runtime_error("goldcode: round_window_s [before_s, after_s] must span a positive time");
+      if (gate_ && own_ < 0)
+        throw std::runtime_error("goldcode: round_window_s needs this device's own emission (cancel_own: true and a "
+                                 "scene in which the device emits one of the codes) to place the rounds");
+      gate_before_ = gate_ ? w[0] * fs_ : 0.0;
+      gate_after_ = gate_ ? w[1] * fs_ : 0.0;
+    }
     refine_doppler_ = static_cast<std::size_t>(params.get_int("refine_doppler_steps"));
     select_amplitude_ = params.get_string("select") == "amplitude";
 
@@ -440,6 +461,9 @@ class GoldcodeDetector final : public Detector {
       ch.has_pend.assign(ncodes_, 0);
     }
     bp_.assign(max_block_, 0.0f);
+    allow_.assign(hop_, 1);
+    r2f_.assign(hop_, 0.0f);
+    wf_.assign(hop_, 0.0f);
     mi_.assign(max_block_, 0.0f);
     mq_.assign(max_block_, 0.0f);
     di_.assign(max_block_ / D_ + 2, 0.0f);
@@ -447,6 +471,7 @@ class GoldcodeDetector final : public Detector {
     spec_xi_.assign(nfft_ / 2 + 1, cf{});
     spec_xq_.assign(nfft_ / 2 + 1, cf{});
     spec_w_.assign(nfft_ / 2 + 1, cf{});
+    spec_w2_.assign(nfft_ / 2 + 1, cf{});
     re_.assign(nfft_, 0.0f);
     im_.assign(nfft_, 0.0f);
     rho_.assign(hop_ * ncodes_, 0.0);
@@ -492,6 +517,7 @@ class GoldcodeDetector final : public Detector {
           pos += canceller_.push(c, x + pos, block.frames - pos);
           if (canceller_.full(c)) {
             const std::size_t n = canceller_.process(c);
+            chans_[c].own_known_until = static_cast<double>(canceller_.output_start(c) + n);
             report_own(c, out);
             run_chunks(c, canceller_.output(c), n, canceller_.output_start(c), out);
             canceller_.advance(c);
@@ -548,6 +574,7 @@ class GoldcodeDetector final : public Detector {
   // The canceller's pending samples (end of stream or a gap): cancel, report, run, forget.
   void drain_canceller(std::uint32_t c, EventSink& out) noexcept {
     const std::size_t n = canceller_.flush(c);
+    chans_[c].own_known_until = static_cast<double>(canceller_.output_start(c) + n);
     report_own(c, out);
     if (n > 0) run_chunks(c, canceller_.output(c), n, canceller_.output_start(c), out);
     canceller_.reset(c, 0);
@@ -562,6 +589,8 @@ class GoldcodeDetector final : public Detector {
       canc_seen_[c] = count - dsp::EmissionCanceller::kHistory;
     for (; canc_seen_[c] < count; ++canc_seen_[c]) {
       const dsp::EmissionCanceller::Fit& f = canceller_.recent(c, count - 1 - canc_seen_[c]);
+      Channel& chn = chans_[c];
+      chn.own_frames[chn.own_count++ % Channel::kOwnKept] = f.peak_lag;
       AudioDetection d;
       d.device = device_;
       d.detector = detector_;
@@ -638,8 +667,26 @@ class GoldcodeDetector final : public Detector {
   // One overlap-save hop: correlation lags base .. base+hop−1 for every code.
   void hop(std::uint32_t c, EventSink& out) noexcept {
     Channel& ch = chans_[c];
-    fft_->forward(ch.xi.data(), spec_xi_.data());
-    fft_->forward(ch.xq.data(), spec_xq_.data());
+    // Round gate: the lags another user's code can start at (all of them without the gate).
+    std::size_t n_allowed = hop_;
+    if (gate_) {
+      n_allowed = 0;
+      const std::size_t kept = std::min(ch.own_count, Channel::kOwnKept);
+      for (std::size_t d = 0; d < hop_; ++d) {
+        const double f = static_cast<double>(ch.base + static_cast<std::int64_t>(d)) * static_cast<double>(D_);
+        // An own emission that could still open a window here may not be found yet: search.
+        bool ok = f + gate_before_ >= ch.own_known_until;
+        for (std::size_t i = 0; i < kept && !ok; ++i)
+          ok = f >= ch.own_frames[i] - gate_before_ - static_cast<double>(D_) &&
+               f <= ch.own_frames[i] + gate_after_ + static_cast<double>(D_);
+        allow_[d] = ok ? 1 : 0;
+        n_allowed += ok ? 1 : 0;
+      }
+    }
+    if (n_allowed > 0) {
+      fft_->forward(ch.xi.data(), spec_xi_.data());
+      fft_->forward(ch.xq.data(), spec_xq_.data());
+    }
     // Exact window sums from prefix sums.
     pre_e_[0] = pre_si_[0] = pre_sq_[0] = 0.0;
     for (std::size_t i = 0; i < nfft_; ++i) {
@@ -659,43 +706,59 @@ class GoldcodeDetector final : public Detector {
     for (std::size_t d = 0; d < hop_; ++d) {
       const double si = pre_si_[d + M_] - pre_si_[d], sq = pre_sq_[d + M_] - pre_sq_[d];
       const double e = pre_e_[d + M_] - pre_e_[d] - (si * si + sq * sq) / m;
-      win_w_[d] = e > min_e ? inv_n * inv_n / e : 0.0;
+      win_w_[d] = e > min_e && (!gate_ || allow_[d]) ? inv_n * inv_n / e : 0.0;
     }
     for (std::size_t u = 0; u < ncodes_; ++u) {
       double* rho = &rho_[u * hop_];
       std::uint16_t* dop = &dop_[u * hop_];
-      if (static_cast<int>(u) == own_) {  // cancelled before this stage: reported from the canceller's fits
+      if (static_cast<int>(u) == own_ || n_allowed == 0) {  // own: reported from the canceller's fits
         std::fill(rho, rho + hop_, 0.0);
         noise_[u] = 1e-12;
         continue;
       }
       // ρ per lag: the best of the code's Doppler versions. The window energy does not depend on the
       // version: 1/(e·n²) once per lag, then ρ² = |z|²·w / energy per version (squares compared,
-      // one square root per lag).
-      std::fill(rho, rho + hop_, 0.0);
+      // one square root per lag). Plain float arithmetic (std::complex's operator* carries NaN
+      // checks that keep the loops from vectorising).
+      std::fill(r2f_.begin(), r2f_.end(), 0.0f);
+      std::fill(dop, dop + hop_, static_cast<std::uint16_t>(d0_));
+      const float* xi = reinterpret_cast<const float*>(spec_xi_.data());
+      const float* xq = reinterpret_cast<const float*>(spec_xq_.data());
+      float* w1 = reinterpret_cast<float*>(spec_w_.data());
+      float* w2 = reinterpret_cast<float*>(spec_w2_.data());
       for (std::size_t f = 0; f < nd_; ++f) {
         const CodeTemplate& t = tpl(u, f);
+        const float* ti = reinterpret_cast<const float*>(t.spec_i.data());
+        const float* tq = reinterpret_cast<const float*>(t.spec_q.data());
         // Re = IFFT(XI·conj(A) + XQ·conj(B)), Im = IFFT(XQ·conj(A) − XI·conj(B)).
-        for (std::size_t b = 0; b < nb; ++b)
-          spec_w_[b] = spec_xi_[b] * std::conj(t.spec_i[b]) + spec_xq_[b] * std::conj(t.spec_q[b]);
+        for (std::size_t b = 0; b < 2 * nb; b += 2) {
+          const float ar = xi[b], ai = xi[b + 1], qr = xq[b], qi = xq[b + 1];
+          const float pr = ti[b], pi = ti[b + 1], sr = tq[b], sim = tq[b + 1];
+          w1[b] = ar * pr + ai * pi + qr * sr + qi * sim;
+          w1[b + 1] = ai * pr - ar * pi + qi * sr - qr * sim;
+          w2[b] = qr * pr + qi * pi - ar * sr - ai * sim;
+          w2[b + 1] = qi * pr - qr * pi - ai * sr + ar * sim;
+        }
         fft_->inverse(spec_w_.data(), re_.data());
-        for (std::size_t b = 0; b < nb; ++b)
-          spec_w_[b] = spec_xq_[b] * std::conj(t.spec_i[b]) - spec_xi_[b] * std::conj(t.spec_q[b]);
-        fft_->inverse(spec_w_.data(), im_.data());
-        const double inv_t = t.energy > 1e-30 ? 1.0 / t.energy : 0.0;
+        fft_->inverse(spec_w2_.data(), im_.data());
+        const float inv_t = t.energy > 1e-30 ? static_cast<float>(1.0 / t.energy) : 0.0f;
+        const std::uint16_t fi = static_cast<std::uint16_t>(f);
+        for (std::size_t d = 0; d < hop_; ++d) wf_[d] = static_cast<float>(win_w_[d]) * inv_t;
         for (std::size_t d = 0; d < hop_; ++d) {
-          const double cr = re_[d], ci = im_[d];
-          const double r2 = (cr * cr + ci * ci) * win_w_[d] * inv_t;
-          if (r2 > rho[d]) {
-            rho[d] = r2;
-            dop[d] = static_cast<std::uint16_t>(f);
-          }
+          const float cr = re_[d], ci = im_[d];
+          const float r2 = (cr * cr + ci * ci) * wf_[d];
+          const bool gt = r2 > r2f_[d];
+          r2f_[d] = gt ? r2 : r2f_[d];
+          dop[d] = gt ? fi : dop[d];
         }
       }
-      for (std::size_t d = 0; d < hop_; ++d) rho[d] = std::min(std::sqrt(rho[d]), 1.0);
       double sum_r2 = 0.0;
-      for (std::size_t d = 0; d < hop_; ++d) sum_r2 += rho[d] * rho[d];
-      noise_[u] = std::max(sum_r2 / static_cast<double>(hop_), 1e-12);
+      for (std::size_t d = 0; d < hop_; ++d) {
+        rho[d] = std::min(std::sqrt(static_cast<double>(r2f_[d])), 1.0);
+        sum_r2 += rho[d] * rho[d];
+      }
+      // Mean ρ² over the lags searched (the gate's, or all of them).
+      noise_[u] = std::max(sum_r2 / static_cast<double>(n_allowed), 1e-12);
     }
     // Lags in time order, all codes at each lag: when one code's candidate is final, every other
     // code's peaks up to that lag are known (needed by the joint refinement).
@@ -1279,7 +1342,11 @@ class GoldcodeDetector final : public Detector {
   std::unique_ptr<RealFft> fft_;
   std::vector<Channel> chans_;
   std::vector<float> bp_, mi_, mq_, di_, dq_, re_, im_;
-  std::vector<cf> spec_xi_, spec_xq_, spec_w_;
+  std::vector<cf> spec_xi_, spec_xq_, spec_w_, spec_w2_;
+  std::vector<std::uint8_t> allow_;  // per lag of a hop: inside a round window (round_window_s)
+  std::vector<float> r2f_, wf_;      // per lag of a hop: best ρ² over the Doppler versions, weights
+  bool gate_ = false;                // round_window_s set
+  double gate_before_ = 0.0, gate_after_ = 0.0;  // frames
   std::vector<double> rho_, noise_, pre_e_, pre_si_, pre_sq_;
   std::vector<Member> members_;
   std::size_t eval_dop_ = 0;
@@ -1355,6 +1422,11 @@ const ParamSchema& schema() {
                   "emission period; 0 = every accepted peak)."),
       int_param("refine_doppler_steps", std::int64_t{1}, 0, 8, "",
                 "Grid steps either side of the coarse Doppler searched again by the full-rate refinement."),
+      float_list_param("round_window_s", std::vector<double>{}, -10.0, 10.0, "s",
+                       "Round gate (Montage protocol: every user emits once per round, a known time after the radio "
+                       "start): [before_s, after_s] = other codes are searched only from before_s before to after_s "
+                       "after one of this device's own emissions (speaker latency spread + largest range / c); "
+                       "[] = everywhere. Needs the own emission (cancel_own).", 0, 2),
   };
   return schema;
 }

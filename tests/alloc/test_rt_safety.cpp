@@ -441,7 +441,8 @@ TEST(RtSafety, ChirpMultipathFitDoesNotAllocateOrLock) {
 // users' codes 50 dB weaker and Doppler-shifted (walking, ±1.2 m/s), codes from the scene
 // (goldcode `from_scene`, `cancel_own`, Doppler search and the two-path first-arrival model on):
 // process_audio never allocates or locks.
-TEST(RtSafety, GoldcodeCancellerDopplerSearchDoesNotAllocateOrLock) {
+// gate: with the round gate (round_window_s) as config/montage-detect.yaml sets it.
+void goldcode_canceller_doppler_rt(bool gate) {
   Registry registry;
   register_builtins(registry);
   test::TestHost host;
@@ -450,6 +451,7 @@ TEST(RtSafety, GoldcodeCancellerDopplerSearchDoesNotAllocateOrLock) {
   ASSERT_NE(d, nullptr);
   Params params = Params::defaults(*d->schema());
   params.set("from_scene", true);
+  if (gate) params.set("round_window_s", std::vector<double>{0.16, 0.22});
   constexpr std::uint32_t kBlock = 256;
   constexpr double kFs = 44100.0;
   StreamInfo info;
@@ -527,6 +529,9 @@ TEST(RtSafety, GoldcodeCancellerDopplerSearchDoesNotAllocateOrLock) {
   EXPECT_GE(own, kRounds - 2) << "the own code must be cancelled (and reported) for the test to mean anything";
   EXPECT_GE(others, 3 * (kRounds - 3)) << "the other users must be found for the test to mean anything";
 }
+
+TEST(RtSafety, GoldcodeCancellerDopplerSearchDoesNotAllocateOrLock) { goldcode_canceller_doppler_rt(false); }
+TEST(RtSafety, GoldcodeRoundGateDoesNotAllocateOrLock) { goldcode_canceller_doppler_rt(true); }
 
 // A working TUM device: its own up-chirp (loud, through the own-emission canceller) overlapped by the
 // other device's down-chirp 40 dB weaker, 2 channels, templates from the scene (chirp `cancel_own`),

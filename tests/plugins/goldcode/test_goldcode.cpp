@@ -29,7 +29,8 @@ struct Fixture {
   HostContext ctx() { return HostContext{host.log, host.clock, fftw, host.link, "gold", "A"}; }
 };
 
-std::unique_ptr<Detector> make(Fixture& f, const Params& p, std::uint32_t max_block = 1024, std::uint32_t channels = 1) {
+std::unique_ptr<Detector> make(Fixture& f, const Params& p, std::uint32_t max_block = 1024, std::uint32_t channels = 1,
+                               const DeviceGeometry* geometry = nullptr) {
   std::unique_ptr<Detector> d(plugins::goldcode::descriptor()->create_detector());
   StreamInfo info;
   info.device = DeviceId("A");
@@ -37,6 +38,7 @@ std::unique_ptr<Detector> make(Fixture& f, const Params& p, std::uint32_t max_bl
   info.sample_rate_hz = kFs;
   info.max_block_frames = max_block;
   HostContext ctx = f.ctx();
+  ctx.geometry = geometry;
   d->configure(info, p, ctx);
   return d;
 }
@@ -56,6 +58,23 @@ dsp::SignalSpec gold(int index) {
 // interpolated by a Kaiser-windowed sinc (±64 taps). (SignalEvaluator at fractional times holds the
 // chips on the sample grid: its chip edges move in whole samples while the carrier moves by the
 // fraction, which no physical, band-limited delay does.)
+// Device A of a four-user Montage scene: it emits gold(0), the scene's gold emitters A-D emit gold(0..3)
+// (the geometry goldcode's from_scene and cancel_own read).
+struct MontageDevice {
+  std::vector<SignalSpec> mine = {gold(0)};
+  std::vector<SceneSignal> scene;
+  DeviceGeometry g;
+  MontageDevice() {
+    for (int u = 0; u < 4; ++u) scene.push_back(SceneSignal{std::string(1, static_cast<char>('A' + u)), gold(u), false, {}});
+    g.mic_count = 1;
+    g.has_speaker = true;
+    g.emits = mine;
+    g.scene_emits = scene;
+  }
+  MontageDevice(const MontageDevice&) = delete;
+  MontageDevice& operator=(const MontageDevice&) = delete;
+};
+
 void add_signal(std::vector<float>& x, const dsp::SignalSpec& spec, double delay_frames, double a) {
   const std::vector<float> s = dsp::render_signal(spec, kFs);
   const auto base = static_cast<std::int64_t>(std::floor(delay_frames));
@@ -220,14 +239,7 @@ TEST(Goldcode, MovingUsersFoundWithDopplerSearch) {
 // the own arrival is reported from the canceller's fit.
 TEST(Goldcode, CancelsOwnEmissionAndFindsTheOthers) {
   Fixture f;
-  std::vector<SignalSpec> mine = {gold(0)};
-  std::vector<SceneSignal> scene;
-  for (int u = 0; u < 4; ++u) scene.push_back(SceneSignal{std::string(1, static_cast<char>('A' + u)), gold(u), false, {}});
-  DeviceGeometry g;
-  g.mic_count = 1;
-  g.has_speaker = true;
-  g.emits = mine;
-  g.scene_emits = scene;
+  const MontageDevice dev;
   Params p = Params::defaults(plugins::goldcode::schema());
   p.set("from_scene", true);
   std::mt19937 rng(5);
@@ -250,15 +262,7 @@ TEST(Goldcode, CancelsOwnEmissionAndFindsTheOthers) {
       if (!cancel && trial > 0) break;
       Params q = p;
       q.set("cancel_own", cancel == 1);
-      std::unique_ptr<Detector> d(plugins::goldcode::descriptor()->create_detector());
-      StreamInfo info;
-      info.device = DeviceId("A");
-      info.channels = 1;
-      info.sample_rate_hz = kFs;
-      info.max_block_frames = 1024;
-      HostContext ctx = f.ctx();
-      ctx.geometry = &g;
-      d->configure(info, q, ctx);
+      auto d = make(f, q, 1024, 1, &dev.g);
       const Result r = run(*d, x, 1024);
       std::vector<int> hits(4, 0);
       for (const AudioDetection& det : r.det)
@@ -280,6 +284,67 @@ TEST(Goldcode, CancelsOwnEmissionAndFindsTheOthers) {
   EXPECT_LE(found_uncancelled, 1) << "without cancellation the others should be buried under the own code";
   std::printf("goldcode own code +50 dB: others found %d/%d within 2 frames (without cancellation %d/3), own %d/4\n",
               found, total, found_uncancelled, own_ok);
+}
+
+// Round gate (round_window_s): three rounds of a Montage device (own code +50 dB, cancelled); in each,
+// the other users arrive within the window around the own emission and are found; the same codes
+// played between rounds, far outside every window (a replayed tone, a stray emitter), are found
+// without the gate and not with it. A gate without an own emission to place the rounds is refused.
+TEST(Goldcode, RoundGateSearchesOnlyAroundTheOwnEmissions) {
+  Fixture f;
+  const MontageDevice dev;
+  std::mt19937 rng(11);
+  std::normal_distribution<float> noise(0.0f, 2e-4f);
+  std::vector<float> x(static_cast<std::size_t>(3.6 * kFs));
+  for (float& v : x) v = noise(rng);
+  std::vector<std::vector<double>> inside(4), outside(4);
+  for (int r = 0; r < 3; ++r) {
+    const double own_at = (0.3 + 1.0 * r) * kFs;
+    add_signal(x, gold(0), own_at, 0.3);
+    for (int u = 1; u < 4; ++u) {
+      const double at = own_at + (r == 1 ? -0.04 : 0.03 * u) * kFs;  // before and after the own emission
+      add_signal(x, gold(u), at, 0.3 * std::pow(10.0, -40.0 / 20.0));
+      inside[u].push_back(at);
+      if (r < 2) {
+        const double stray = own_at + (0.5 + 0.05 * u) * kFs;  // between rounds
+        add_signal(x, gold(u), stray, 0.3 * std::pow(10.0, -40.0 / 20.0));
+        outside[u].push_back(stray);
+      }
+    }
+  }
+  auto count = [&](const Result& res, const std::vector<std::vector<double>>& where) {
+    int n = 0;
+    for (const AudioDetection& det : res.det)
+      for (double t : where[det.template_index]) n += std::abs(det.frame - t) <= 2.0;
+    return n;
+  };
+  int found[2] = {0, 0}, stray[2] = {0, 0};
+  for (int gate = 0; gate < 2; ++gate) {
+    Params p = Params::defaults(plugins::goldcode::schema());
+    p.set("from_scene", true);
+    if (gate) p.set("round_window_s", std::vector<double>{0.06, 0.14});
+    auto d = make(f, p, 1024, 1, &dev.g);
+    const Result res = run(*d, x, 1024);
+    found[gate] = count(res, inside);
+    stray[gate] = count(res, outside);
+  }
+  EXPECT_EQ(found[1], 9) << "every other user inside the rounds' windows";
+  EXPECT_EQ(stray[1], 0) << "nothing outside the windows";
+  EXPECT_EQ(stray[0], 6) << "without the gate the stray codes are found (the test's control)";
+  std::printf("goldcode round gate: in-window users %d/9 (ungated %d/9), stray codes %d/6 (ungated %d/6)\n", found[1],
+              found[0], stray[1], stray[0]);
+
+  // No own emission to place the rounds: refused at configure time with the parameter's name.
+  Params p = Params::defaults(plugins::goldcode::schema());
+  p.set("round_window_s", std::vector<double>{0.06, 0.14});
+  try {
+    make(f, p);
+    ADD_FAILURE() << "round_window_s without an own emission was accepted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("round_window_s"), std::string::npos) << e.what();
+  }
+  p.set("round_window_s", std::vector<double>{0.06});
+  EXPECT_THROW(make(f, p), std::exception);
 }
 
 TEST(Goldcode, AmplitudeEstimateAndNoiseOnlyIsQuiet) {

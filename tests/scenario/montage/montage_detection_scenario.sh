@@ -3,9 +3,10 @@
 # seeds, replayed through config/montage-detect.yaml, the other users' arrivals scored with
 # tools/scripts/check_montage_arrivals.py (exit 4 when a bar is missed):
 #   - pairs (the family's default formation, free field, r = 5, 100-sample chips), seed 2:
-#     >= 70 % of the arrivals within 12 m found within 2 samples (measured 78.3 %), <= 5 off by > 10;
+#     >= 75 % of the arrivals within 12 m found within 2 samples (measured 78.3 %), <= 5 off by > 10
+#     (measured 3);
 #   - free formation in the hall (r = 7, 40-sample chips, walking Doppler, reverberation), seed 4:
-#     >= 65 % (measured 72.3 %), <= 12 off by > 10.
+#     >= 68 % (measured 72.3 %), <= 2 off by > 10 (measured 0).
 # These keep what the detector reaches; the issue-15 bar (95 %, none > 10 off) is NOT met.
 #   montage_detection_scenario.sh LOCUS_BIN SOURCE_DIR
 set -euo pipefail
@@ -31,6 +32,6 @@ run_case() {  # name seed "simulate-options" check-options...
   fi
 }
 
-run_case pairs-seed2 2 "" --min-found 0.70 --max-off10 5
-run_case free-hall-seed4 4 "-o room=hall -o formation=free -o degree=7 -o chip_samples=40" --min-found 0.65 --max-off10 12
+run_case pairs-seed2 2 "" --min-found 0.75 --max-off10 5
+run_case free-hall-seed4 4 "-o room=hall -o formation=free -o degree=7 -o chip_samples=40" --min-found 0.68 --max-off10 2
 exit "$fail"
