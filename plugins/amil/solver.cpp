@@ -1357,7 +1357,10 @@ double calibrate_session(std::vector<Solution>& listeners, const SolverConfig& c
     if (std::isfinite(s.skew) && std::abs(s.skew) > cfg.max_abs_skew) continue;  // already direction-only for its skew
     // Inconsistent: residuals far beyond the session's noise.
     s.inconsistent = s.chi2 > factor * chi2_q999(s.dof);
-    const Eigen::Matrix2d P = s.fit_covariance_m2 * factor +
+    // An inconsistent listener's own residuals say its noise is larger than the session's: its
+    // covariance takes its own chi²/dof (a wrong path or cycle is not in the noise model).
+    const double own = s.inconsistent ? s.chi2 / std::max(1, s.dof) : factor;
+    const Eigen::Matrix2d P = s.fit_covariance_m2 * std::max(factor, own) +
                               Eigen::Matrix2d::Identity() * (s.reference_offset_std_m * s.reference_offset_std_m);
     // Recompute from the fitted point: position, stds, the direction-only decision.
     const Status before = s.status;
