@@ -8,8 +8,8 @@
 #     distance, their median distance error <= DIST1 %; three gestures (seed 5): located, unflagged
 #     direction <= DIR3 deg.
 #   - WORLD: `normal` as it is now (as hard as ../shared/scenes/README.md): seed 3, every listener
-#     located and the unflagged ones' mean direction error <= DIR1 deg. (The issue's distance bars are
-#     not met on it yet: docs/amil.md "Accuracy".)
+#     located, the unflagged ones' mean direction error <= DIR1 deg and every listener within 2.5 m
+#     with a distance (the issue-13 bars hold over 20 seeds, not on every single seed: docs/amil.md).
 # `locus eval` exits 4 when a bar is missed; this script then prints the eval table and fails.
 #   amil_scenario.sh LOCUS_BIN SOURCE_DIR
 set -euo pipefail
@@ -47,7 +47,7 @@ NEAR="--min-near-with-distance-fraction 1.0 --max-near-median-distance-error-pct
 run_case paper-1g-s3 3 1 "$OLD" --min-located-fraction 1.0 --max-unflagged-direction-error-deg "$DIR1" $NEAR
 run_case paper-1g-s11 11 1 "$OLD" --min-located-fraction 1.0 --max-unflagged-direction-error-deg "$DIR1" $NEAR
 run_case paper-3g-s5 5 3 "$OLD" --min-located-fraction 1.0 --max-unflagged-direction-error-deg "$DIR3"
-run_case world-1g-s3 3 1 "" --min-located-fraction 1.0 --max-unflagged-direction-error-deg "$DIR1"
+run_case world-1g-s3 3 1 "" --min-located-fraction 1.0 --max-unflagged-direction-error-deg "$DIR1" --min-near-with-distance-fraction 1.0
 # hard: obstructed listeners' first paths are reflections; what is not flagged must be right
 run_case world-hard-1g-s6 6 1 "--difficulty hard" --max-unflagged-direction-error-deg 5
 exit "$fail"
