@@ -448,6 +448,8 @@ class AmilLocalizer final : public Localizer {
         // One listener's fit has ~1 degree of freedom: scale the uncertainty by the session's pooled
         // residuals and flag listeners far beyond them (solver.hpp calibrate_session()).
         const double factor = amil::calibrate_session(sols, solver_);
+        for (std::size_t i = 0; i < ids.size(); ++i)
+          if (!sols[i].located() && (sols[i].weak || sols[i].inconsistent)) amil::widen_by_jackknife(beeps, arrs[i], solver_, sols[i]);
         log_->info(tag + ": session noise factor " + fmt("%.2f", factor) + " (pooled chi2/dof of the listeners)");
       }
     } catch (const std::exception& e) {

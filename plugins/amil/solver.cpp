@@ -35,6 +35,7 @@ struct Obs {
   std::vector<double> sigma;       ///< residual 1-sigma (m)
   std::vector<int> index;          ///< index into the caller's beeps
   std::vector<double> a, e;        ///< raw times (Paper)
+  std::vector<double> pos_var;     ///< the beep position's error variance per axis (m²; 0 without)
   double c = 343.2;
   int n() const { return static_cast<int>(p.size()); }
 };
@@ -210,6 +211,44 @@ Eigen::MatrixXd covariance(const Obs& o, const std::vector<double>& w, const Eig
   return lu.inverse();
 }
 
+/// Covariance of (x, y, b, g) of the fit with weights w when the beep position errors are not
+/// independent but accumulate along the gesture, as the tracker's do (each movement adds its error to
+/// every later pause: a random walk, so Cov(δp_k, δp_l) = min(var_k, var_l) per axis for beeps in time
+/// order). The estimator weights them as independent; its actual covariance is the sandwich
+/// A⁻¹ (Jᵀ W C W J) A⁻¹ with C_kl = δ_kl·σ_k² + (1 − δ_kl)·min(var_k, var_l)·(∂r_k/∂p_k · ∂r_l/∂p_l).
+/// Correlated errors mostly move the beeps together, which the curvature (the distance) barely sees:
+/// the diagonal model overstated a near listener's distance std about twice
+/// (AmilBound.ReportedStdFollowsTheTrackersAccumulatedErrors, docs/amil.md).
+Eigen::MatrixXd accumulated_covariance(const Obs& o, const std::vector<double>& w, const Eigen::Vector4d& q) {
+  const int n = o.n();
+  if (static_cast<int>(o.pos_var.size()) != n) return covariance(o, w, q, true);
+  Eigen::VectorXd r;
+  Eigen::MatrixXd J;
+  residuals(o, q, r, J);
+  Eigen::VectorXd W(n);
+  std::vector<Eigen::Vector2d> g(static_cast<std::size_t>(n));  // ∂r_k/∂p_k = −∂r_k/∂x
+  for (int k = 0; k < n; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    W[k] = w[ku] / (o.sigma[ku] * o.sigma[ku]);
+    g[ku] = -Eigen::Vector2d(J(k, 0), J(k, 1));
+  }
+  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(n, n);
+  for (int k = 0; k < n; ++k) {
+    const auto ku = static_cast<std::size_t>(k);
+    C(k, k) = o.sigma[ku] * o.sigma[ku];  // timing + this beep's own position variance
+    for (int l = 0; l < k; ++l) {
+      const auto lu = static_cast<std::size_t>(l);
+      C(k, l) = C(l, k) = std::min(o.pos_var[ku], o.pos_var[lu]) * g[ku].dot(g[lu]);
+    }
+  }
+  const Eigen::MatrixXd WJ = W.asDiagonal() * J;
+  const Eigen::Matrix4d A = J.transpose() * WJ;
+  Eigen::FullPivLU<Eigen::Matrix4d> lu(A);
+  if (lu.rank() < 4) return Eigen::MatrixXd::Constant(4, 4, kNaN);
+  const Eigen::Matrix4d Ai = lu.inverse();
+  return Ai * (WJ.transpose() * C * WJ) * Ai;
+}
+
 /// Fills std/direction/distance fields from a 2x2 position covariance.
 void fill_uncertainty(Solution& s, const Eigen::Matrix2d& P) {
   const double r = s.position_m.norm();
@@ -346,6 +385,7 @@ Obs subset(const Obs& o, const std::vector<int>& keep) {
     s.index.push_back(o.index[ku]);
     s.a.push_back(o.a[ku]);
     s.e.push_back(o.e[ku]);
+    if (ku < o.pos_var.size()) s.pos_var.push_back(o.pos_var[ku]);
   }
   return s;
 }
@@ -582,6 +622,7 @@ Obs make_obs(const std::vector<Beep>& beeps, const ListenerArrivals& arr, const 
     o.a.push_back(a);
     o.e.push_back(b.player_time_s);
     o.sigma.push_back(std::max(1e-7, std::sqrt(c * tstd_k * c * tstd_k + pstd * pstd)));
+    o.pos_var.push_back(pstd * pstd);
     o.index.push_back(static_cast<int>(k));
   }
   for (int k = 0; k < o.n(); ++k) {
@@ -946,7 +987,7 @@ Solution joint_solution(const Obs& o, const ListenerArrivals& arr, Method method
   sol.skew = f.g / c;
   sol.beeps_used = jr.used.n();
   for (int idx : jr.dropped) sol.note += "beep " + std::to_string(idx) + " dropped as an outlier; ";
-  const Eigen::MatrixXd P = covariance(jr.used, jr.w, Eigen::Vector4d(f.x.x(), f.x.y(), f.b, f.g), true);
+  const Eigen::MatrixXd P = accumulated_covariance(jr.used, jr.w, Eigen::Vector4d(f.x.x(), f.x.y(), f.b, f.g));
   const int dof = jr.used.n() - 4;
   {
     Eigen::VectorXd r;
@@ -1380,6 +1421,42 @@ double calibrate_session(std::vector<Solution>& listeners, const SolverConfig& c
     }
   }
   return factor;
+}
+
+double widen_by_jackknife(const std::vector<Beep>& beeps, const ListenerArrivals& arrivals, const SolverConfig& cfg,
+                          Solution& s) {
+  if (!std::isfinite(s.direction_rad)) return kNaN;
+  std::vector<double> dirs;
+  for (std::size_t k = 0; k < arrivals.arrival_s.size() && k < beeps.size(); ++k) {
+    if (!std::isfinite(arrivals.arrival_s[k])) continue;
+    ListenerArrivals drop = arrivals;
+    drop.arrival_s[k] = kNaN;
+    const Solution j = solve(beeps, drop, cfg);
+    if (std::isfinite(j.direction_rad)) dirs.push_back(j.direction_rad);
+  }
+  // Exactly determined leave-one-out fits can land on the mirror solution (4 equations, 4 unknowns):
+  // a flip says nothing about the size of a small error, so fits beyond 90° of the full one are left out.
+  std::vector<double> near;
+  for (double d : dirs)
+    if (std::fabs(std::remainder(d - s.direction_rad, 2.0 * M_PI)) < 0.5 * M_PI) near.push_back(d);
+  const auto n = static_cast<double>(near.size());
+  if (near.size() < 3) return kNaN;
+  double sc = 0.0, ss = 0.0;
+  for (double d : near) sc += std::cos(d), ss += std::sin(d);
+  const double mean = std::atan2(ss, sc);
+  double sum2 = 0.0;
+  for (double d : near) {
+    const double e = std::remainder(d - mean, 2.0 * M_PI);
+    sum2 += e * e;
+  }
+  const double jk_std = std::sqrt((n - 1.0) / n * sum2);
+  if (jk_std > s.direction_std_rad || !std::isfinite(s.direction_std_rad)) {
+    s.direction_std_rad = jk_std;
+    if (s.located() && std::isfinite(s.distance_std_m))
+      s.std_m = std::hypot(s.distance_std_m, s.distance_m * jk_std);
+    s.note += "direction std from the leave-one-out spread; ";
+  }
+  return jk_std;
 }
 
 }  // namespace locus::plugins::amil

@@ -191,6 +191,15 @@ NetworkSolution solve_network(const std::vector<Beep>& beeps, const std::vector<
 /// Returns the session factor (1 when nothing could be pooled).
 double calibrate_session(std::vector<Solution>& listeners, const SolverConfig& cfg);
 
+/// For a listener its data doubt (`weak`: few reliable arrivals, `inconsistent`: residuals beyond the
+/// noise), the Gaussian direction std stands on arrivals that may be reflections or slipped cycles. The
+/// leave-one-out fits (each heard beep dropped in turn; 4 beeps still fix x, y, skew and offset) show
+/// how far one arrival moves the direction: when their jackknife spread exceeds direction_std_rad, it
+/// becomes the direction std (and a located listener's std_m takes it across range). Returns the
+/// jackknife direction std (NaN when fewer than 3 leave-one-out fits solve).
+double widen_by_jackknife(const std::vector<Beep>& beeps, const ListenerArrivals& arrivals, const SolverConfig& cfg,
+                          Solution& s);
+
 /// [main] Carrier-cycle ambiguity of one listener's arrivals (needs ListenerArrivals::carrier_period_s
 /// and cycle_offset_s, >= 5 arrivals heard). A carrier-timed arrival is exact within its carrier
 /// cycle but the cycle comes from the envelope maximum, which multipath within a few envelope widths
