@@ -93,6 +93,10 @@ class FakeIioTree {
     std::string magn_scale = "0.000146";      // Gauss per LSB
     std::string sampling_frequency = "104.000000";
     bool buffered = true;
+    /// Content of current_timestamp_clock ("" = no such file). A real device has it (the kernel's
+    /// default is realtime); the `iio` source writes `monotonic` into it and only then takes the scan
+    /// timestamps as CLOCK_MONOTONIC (moved onto the audio timeline of a live node).
+    std::string timestamp_clock;
   };
 
   /// A complete accel + gyro (+ magn) device at index n with a FIFO at dev/iio:device<n>. Scan indices:
@@ -104,6 +108,7 @@ class FakeIioTree {
     const std::string d = dev_rel(n);
     write(d + "name", o.name + "\n");
     if (!o.sampling_frequency.empty()) write(d + "sampling_frequency", o.sampling_frequency + "\n");
+    if (!o.timestamp_clock.empty()) write(d + "current_timestamp_clock", o.timestamp_clock + "\n");
     write(d + "in_accel_scale", o.accel_scale + "\n");
     write(d + "in_anglvel_scale", o.gyro_scale + "\n");
     const char* axes[] = {"x", "y", "z"};

@@ -584,7 +584,7 @@ const ParamSchema& schema() {
       float_param("min_rest_s", 0.3, 0.0, 60.0, "s", "Rest needed before a gesture (gravity and gyro bias)."),
       float_param("session_gap_s", 2.0, 0.1, 3600.0, "s", "A rest this long ends the gesture session."),
       int_param("session_movements", 0, 0, 1000, "",
-                "> 0: a session also ends when its Nth movement ends (a gesture of known strokes: 3 for one triangle); "
+                "> 0: a session also ends when its Nth movement ends (a gesture of known strokes: 4 for one triangle drawn from the middle of its base); "
                 "live, its estimates then follow its last beep instead of session_gap_s later. 0 = by session_gap_s only."),
       float_param("max_gap_s", 0.25, 0.001, 60.0, "s", "Longer IMU gaps abandon the current session."),
       float_param("beep_f0_hz", 18000.0, 1.0, 96000.0, "Hz", "Beep (lfm) start frequency when the scene does not declare one."),

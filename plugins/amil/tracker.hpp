@@ -71,7 +71,7 @@ struct TrackerConfig {
   double min_rest_s = 0.3;              ///< rest needed before a session can start (gravity, gyro bias)
   double session_gap_s = 2.0;           ///< a rest this long closes the session
   int session_movements = 0;            ///< > 0: the session also closes when its Nth movement ends (a
-                                        ///< gesture of known strokes, e.g. 3 for one triangle: live, the
+                                        ///< gesture of known strokes, e.g. 4 for one triangle from its base: live, the
                                         ///< estimate need not wait session_gap_s); 0 = by session_gap_s only
   double max_gap_s = 0.25;              ///< longer IMU gaps abandon the open session
   Eigen::Vector3d speaker_body_m = Eigen::Vector3d::Zero();  ///< speaker in the body frame (geometry)

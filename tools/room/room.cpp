@@ -218,6 +218,7 @@ class ImuFeeder {
       char freq[32];
       std::snprintf(freq, sizeof freq, "%.6f", opts.imu_rate_hz);
       io.sampling_frequency = freq;
+      io.timestamp_clock = "realtime";  // the kernel's default; the node's `iio` source switches it to monotonic
       dev.tree->add_imu(0, io);
       dev.fifo = dev.tree->path("dev/iio:device0");
       dev.accel_scale = std::stod(io.accel_scale);
@@ -276,16 +277,23 @@ class ImuFeeder {
     // wait for the room's first cycle (the time base)
     while (!stop_ && !std::isfinite(jack_.monotonic_of(0.0))) std::this_thread::sleep_for(std::chrono::milliseconds(5));
     if (stop_) return;
-    const double t_first = std::max(0.0, monotonic_s() - jack_.monotonic_of(0.0));
+    // Room time -> CLOCK_MONOTONIC: each cycle's estimate (JACK's DLL) jitters by milliseconds on a
+    // loaded machine; a real IMU's stamps do not. The offset is smoothed (time constant ~2 s) so that
+    // the stamps follow the server's clock without its jitter, and kept increasing.
+    double offset = jack_.monotonic_of(0.0);
+    double last_stamp = -1e300;
+    const double t_first = std::max(0.0, monotonic_s() - offset);
     for (std::int64_t j = static_cast<std::int64_t>(std::ceil(t_first * rate_)); !stop_; ++j) {
       const double t = static_cast<double>(j) / rate_;
-      const double mono = jack_.monotonic_of(t);
+      offset += std::min(1.0, 0.5 / rate_) * (jack_.monotonic_of(0.0) - offset);
+      const double mono = std::max(t + offset, last_stamp + 0.25 / rate_);
       const double wait = mono - monotonic_s();
       if (wait > 0) std::this_thread::sleep_for(std::chrono::duration<double>(std::min(wait, 0.05)));
       if (monotonic_s() < mono) {
         --j;  // not yet (slept at most 50 ms to notice stop)
         continue;
       }
+      last_stamp = mono;
       const auto ns = static_cast<std::int64_t>(std::llround(mono * 1e9));
       for (auto& d : devs_) {
         if (d.fd < 0) d.fd = ::open(d.fifo.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);  // ENXIO: no reader yet

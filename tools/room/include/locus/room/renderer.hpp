@@ -14,7 +14,8 @@
 //     steps), positions from the layout's trajectories at layout time t − layout_start (before the
 //     layout starts every device holds its first pose): moving ends give Doppler by themselves;
 //   * contribution = gain_p · level_at_1m / max(r, min_distance) · x_s(te), x_s read from the speaker's
-//     history with a 32-tap Kaiser-windowed sinc interpolator (1024 phases): a fractional delay;
+//     history with a 64-tap Kaiser-windowed sinc interpolator (1024 phases): a fractional delay, and
+//     the converters' anti-aliasing low-pass (−6 dB at 0.88·fs/2, the same for every delay; why: renderer.cpp);
 //     te and the gain are computed every 32 frames and interpolated linearly in between;
 //   * plus white noise per microphone, then clipping at full scale (±1).
 // A speaker silent for longer than the longest path is skipped (most speakers are silent most of the
@@ -62,7 +63,7 @@ struct Onset {
 
 class RoomRenderer {
  public:
-  static constexpr int kTaps = 32;         ///< interpolator length
+  static constexpr int kTaps = 64;         ///< interpolator length
   static constexpr int kPhases = 1024;     ///< fractional-delay resolution (1/1024 sample)
   static constexpr std::uint32_t kControl = 32;  ///< frames between geometry updates
 
