@@ -150,7 +150,7 @@ def node_config(args, dev, player, server, mqtt_port, room_out, out_jsonl, track
     return {
         "log_level": "info",
         "sample_rate_hz": 44100,
-        "output": {"path": out_jsonl, "events": ["estimate", "audio_detection"] + (["imu_sample"] if os.environ.get("HIL_IMU_EVENTS") else [])},
+        "output": {"path": out_jsonl, "events": ["estimate", "audio_detection"] + (["imu_sample"] if args.imu_events else [])},
         "link": {"type": "mqtt", "params": {"host": "127.0.0.1", "port": mqtt_port, "connect_timeout_s": 10}},
         "devices": [{
             "id": ident,
@@ -379,6 +379,7 @@ def main():
     ap.add_argument("--map", default="127.0.0.1:0", help="the player's live map ([HOST:]PORT, or off)")
     ap.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the estimates after the layout")
     ap.add_argument("--json", help="write the figures here")
+    ap.add_argument("--imu-events", action="store_true", help="the nodes also write their IMU samples (JSON lines)")
     args = ap.parse_args()
 
     names = subprocess.run([os.path.join(args.bin, "locus"), "plugins", "--json"], capture_output=True, text=True)

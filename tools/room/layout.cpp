@@ -44,7 +44,21 @@ std::optional<Eigen::Vector3d> room_size_from_environment(const std::string& env
   return size;
 }
 
-Layout load_layout(const std::string& dir) {
+EasedTrajectory::EasedTrajectory(std::shared_ptr<const sim::Trajectory> inner, double t_begin_s, double ease_s)
+    : inner_(std::move(inner)), t0_(t_begin_s), ease_s_(ease_s), first_(inner_->pose(t_begin_s)) {}
+
+sim::Pose EasedTrajectory::pose(double t_s) const {
+  const sim::Pose p = inner_->pose(t_s);
+  if (!(ease_s_ > 0.0) || t_s >= t0_ + ease_s_) return p;
+  if (!(t_s > t0_)) return first_;
+  const double w = sim::min_jerk((t_s - t0_) / ease_s_);
+  sim::Pose out;
+  out.position_m = first_.position_m + w * (p.position_m - first_.position_m);
+  out.attitude = first_.attitude.slerp(w, p.attitude);
+  return out;
+}
+
+Layout load_layout(const std::string& dir, double ease_s) {
   Layout l;
   l.dir = dir;
   l.scene = scene::load_scene(dir);
@@ -86,10 +100,14 @@ Layout load_layout(const std::string& dir) {
     }
     const auto it = rows.find(spec.id);
     if (it != rows.end()) {
-      d.trajectory = std::make_shared<sim::SampledTrajectory>(it->second.first, it->second.second);
+      auto sampled = std::make_shared<sim::SampledTrajectory>(it->second.first, it->second.second);
+      d.times_s = it->second.first;
+      d.trajectory = sampled->is_static() ? std::shared_ptr<const sim::Trajectory>(sampled)
+                                          : std::make_shared<EasedTrajectory>(sampled, l.t_begin_s, ease_s);
     } else if (spec.anchor_position_m) {
       const auto& a = *spec.anchor_position_m;
       d.trajectory = std::make_shared<sim::StaticTrajectory>(Eigen::Vector3d(a[0], a[1], a[2]));
+      d.times_s = {l.t_begin_s};
     } else {
       throw std::runtime_error(yaml + ":" + std::to_string(spec.line) + ": device '" + spec.id +
                                "': no position (expected rows of it in the scene's truth.csv, or an anchor)");
@@ -99,13 +117,8 @@ Layout load_layout(const std::string& dir) {
   if (l.room_size_m) {
     const Eigen::Vector3d& box = *l.room_size_m;
     for (const auto& d : l.devices) {
-      const auto* traj = dynamic_cast<const sim::SampledTrajectory*>(d.trajectory.get());
       std::vector<Eigen::Vector3d> points;
-      if (traj) {
-        for (const auto& p : traj->poses()) points.push_back(p.position_m);
-      } else {
-        points.push_back(d.trajectory->pose(0.0).position_m);
-      }
+      for (double t : d.times_s) points.push_back(d.trajectory->pose(t).position_m);
       for (const auto& p : points) {
         if ((p.array() < 0.0).any() || (p.array() > box.array()).any()) {
           std::ostringstream msg;

@@ -369,16 +369,14 @@ void write_truth(const RoomOptions& opts, const Layout& layout, const RoomRender
     rows.push_back(tr);
   };
   for (const auto& d : layout.devices) {
-    const auto* st = dynamic_cast<const sim::SampledTrajectory*>(d.trajectory.get());
-    if (!started || d.trajectory->is_static() || st == nullptr) {
+    if (!started || d.trajectory->is_static() || d.times_s.empty()) {
       row(d.id, 0.0, d.trajectory->pose(layout.t_begin_s));
       continue;
     }
-    if (start + st->times().front() > 0.0) row(d.id, 0.0, st->poses().front());
-    for (std::size_t i = 0; i < st->times().size(); ++i) {
-      const double t = start + st->times()[i];
-      if (t >= 0.0) row(d.id, t, st->poses()[i]);
-    }
+    // the poses the room rendered (the eased trajectory) at the layout's own row times
+    if (start + d.times_s.front() > 0.0) row(d.id, 0.0, d.trajectory->pose(d.times_s.front()));
+    for (double tau : d.times_s)
+      if (start + tau >= 0.0) row(d.id, start + tau, d.trajectory->pose(tau));
   }
   std::stable_sort(rows.begin(), rows.end(), [](const scene::TruthRow& a, const scene::TruthRow& b) { return a.t_s < b.t_s; });
   {

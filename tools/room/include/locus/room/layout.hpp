@@ -28,7 +28,8 @@ struct LayoutDevice {
   std::optional<Eigen::Vector3d> speaker_body_m;     ///< body frame; absent: the room plays the device's
                                                      ///< speaker port from its body origin
   std::vector<dsp::SignalSpec> emits;                ///< as declared (copied to the run's scene.yaml)
-  std::shared_ptr<const sim::Trajectory> trajectory; ///< layout time (truth.csv's t)
+  std::shared_ptr<const sim::Trajectory> trajectory; ///< layout time (truth.csv's t), eased in (below)
+  std::vector<double> times_s;                       ///< truth.csv's times of this device (the truth the room writes)
   std::optional<scene::ClockTruth> clock;            ///< the layout's truth clock (its skew is `--skew scene`)
 
   /// Where the sound of this device's speaker port comes from (body frame).
@@ -47,10 +48,28 @@ struct Layout {
   const LayoutDevice* find(const std::string& id) const;
 };
 
+/// A trajectory that starts from rest: over [t_begin, t_begin + ease_s] it blends from the first pose
+/// into `inner` with a minimum-jerk weight (after it, `inner` itself). Why: before a layout starts every
+/// device holds its first pose, perfectly still; a layout whose first seconds hold a hand's tremor
+/// would otherwise start it with a jolt that a gesture tracker takes for a movement.
+class EasedTrajectory final : public sim::Trajectory {
+ public:
+  EasedTrajectory(std::shared_ptr<const sim::Trajectory> inner, double t_begin_s, double ease_s);
+  sim::Pose pose(double t_s) const override;
+  bool is_static() const override { return inner_->is_static(); }
+  double max_speed_mps() const override { return inner_->max_speed_mps(); }
+
+ private:
+  std::shared_ptr<const sim::Trajectory> inner_;
+  double t0_, ease_s_;
+  sim::Pose first_;
+};
+
 /// Reads DIR/scene.yaml and its truth.csv. Every device needs a trajectory (truth rows, or an anchor);
 /// a layout without devices, a device without one, or positions outside `environment.room` are errors
 /// (std::runtime_error naming the file and what was expected; scene::SceneError for format errors).
-Layout load_layout(const std::string& dir);
+/// Every moving device's trajectory is eased in over the first `ease_s` seconds (EasedTrajectory).
+Layout load_layout(const std::string& dir, double ease_s = 1.0);
 
 /// `environment.room` of a scene (the free-form environment YAML), if it is a list of three positive numbers.
 /// Throws std::runtime_error when present but malformed.
