@@ -214,7 +214,7 @@ def hil_amil(args, bin_dir, out, run):
     room_log = os.path.join(out, "logs", "room.out")
     room = run.start("room", [locus, "room", layout, room_out, "--server", server, "--skew", "scene", "--seed",
                               str(args.seed), "--lead-in", "2", "--reflections", str(args.reflections),
-                              "--node-origins", origins_csv], env=env, stdout=open(room_log, "w"))
+                              "--self-gain", str(args.self_gain), "--node-origins", origins_csv], env=env, stdout=open(room_log, "w"))
     wait_for(lambda: os.path.isdir(os.path.join(room_out, "iio", player, "dev")), 20, "the room's IIO trees",
              [("room", room)])
 
@@ -376,6 +376,8 @@ def main():
     ap.add_argument("--gestures", type=int, default=1, choices=[1, 3])
     ap.add_argument("--period", type=int, default=1024, help="JACK period (frames)")
     ap.add_argument("--reflections", type=int, default=0, choices=[0, 1], help="the room's image-source order")
+    ap.add_argument("--self-gain", type=float, default=0.2,
+                    help="the player's own speaker into its own microphone (the room's --self-gain)")
     ap.add_argument("--map", default="127.0.0.1:0", help="the player's live map ([HOST:]PORT, or off)")
     ap.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the estimates after the layout")
     ap.add_argument("--json", help="write the figures here")

@@ -32,6 +32,9 @@ Subcommand add_room_command(CLI::App& cli) {
       ->check(CLI::Range(0.0, 86400.0));
   cmd->add_option("--level-at-1m", opts->renderer.level_at_1m, "amplitude at 1 m of a full-scale speaker signal")
       ->check(CLI::Range(1e-6, 10.0));
+  cmd->add_option("--self-gain", opts->renderer.self_gain,
+                  "extra gain of a device's own speaker into its own microphones (coupling through the case)")
+      ->check(CLI::Range(0.0, 10.0));
   cmd->add_option("--noise-snr-db", *noise_snr_db,
                   "white noise per microphone: SNR of a full-scale sine at 1 m (the simulator's definition); 200 = none")
       ->check(CLI::Range(-20.0, 200.0));

@@ -58,6 +58,7 @@ RoomRenderer::RoomRenderer(const Layout& layout, RendererConfig cfg)
   if (!cfg_.skew_ppm.empty() && cfg_.skew_ppm.size() != layout.devices.size())
     throw std::invalid_argument("room: one skew per device expected");
   if (cfg_.max_block_frames == 0 || cfg_.max_block_frames > (1u << 20)) throw std::invalid_argument("room: max_block_frames out of range");
+  if (!(cfg_.self_gain >= 0.0)) throw std::invalid_argument("room: self_gain must be >= 0");
   if (!(cfg_.level_at_1m > 0.0) || !(cfg_.min_distance_m > 0.0) || !(cfg_.noise_rms >= 0.0) || !(cfg_.max_duration_s > 0.0))
     throw std::invalid_argument("room: level_at_1m, min_distance_m and max_duration_s must be > 0, noise_rms >= 0");
 
@@ -116,7 +117,8 @@ RoomRenderer::RoomRenderer(const Layout& layout, RendererConfig cfg)
     for (std::uint32_t r = 0; r < devices_.size(); ++r)
       for (std::uint32_t m = 0; m < devices_[r].mics.size(); ++m)
         for (int im = -1; im < images; ++im)
-          paths_.push_back(Path{s, r, m, im, im < 0 ? 1.0f : static_cast<float>(cfg_.reflection)});
+          paths_.push_back(Path{s, r, m, im,
+                                static_cast<float>(im >= 0 ? cfg_.reflection : s == r ? cfg_.self_gain : 1.0)});
 
   // The interpolator: row ph holds the weights of history samples i0 − (kTaps/2 − 1) .. i0 + kTaps/2
   // for a read position i0 + ph / kPhases (Kaiser-windowed sinc, unit DC gain).

@@ -44,6 +44,8 @@ namespace locus::room {
 struct RendererConfig {
   double level_at_1m = 0.1;           ///< amplitude (full scale 1) of a unit speaker signal at 1 m (the simulator's)
   double min_distance_m = 0.01;       ///< spreading clamped below this distance
+  double self_gain = 1.0;             ///< extra gain of a device's own speaker into its own mics (direct
+                                      ///< path; the simulator's DeviceModel::self_gain: coupling through the case)
   double noise_rms = 7.07e-4;         ///< white noise per microphone (RMS, full scale 1); 0 = none
   int reflection_order = 0;           ///< 0 = direct path only, 1 = plus the six first-order images
   double reflection = 0.7;            ///< pressure reflection coefficient of every wall (order 1)
