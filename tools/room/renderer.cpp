@@ -225,7 +225,8 @@ void RoomRenderer::process(const float* const* speakers, float* const* mics, std
   const std::uint32_t nctrl = (n + kControl - 1) / kControl;
   std::uint64_t rendered = 0;
   for (const Path& p : paths_) {
-    if (last_loud_[p.src] == 0 || first + n > last_loud_[p.src] + reach_frames_) continue;
+    // silent for longer than the longest path at this block's first frame: nothing of it is in the air
+    if (last_loud_[p.src] == 0 || first > last_loud_[p.src] + reach_frames_) continue;
     ++rendered;
     for (std::uint32_t c = 0; c <= nctrl; ++c) {
       const double k = static_cast<double>(first) + static_cast<double>(std::min<std::uint32_t>(c * kControl, n));
