@@ -71,11 +71,16 @@ def wait_for(cond, timeout_s, what, procs=()):
 
 
 def rss_mb(pid):
+    """(VmRSS, RssShmem) in MB: the resident set, and its shared-memory part (JACK's segments,
+    mapped into every client)."""
+    rss = shm = float("nan")
     with open(f"/proc/{pid}/status") as f:
         for line in f:
             if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024.0
-    return float("nan")
+                rss = int(line.split()[1]) / 1024.0
+            elif line.startswith("RssShmem:"):
+                shm = int(line.split()[1]) / 1024.0
+    return rss, shm
 
 
 class Run:
@@ -215,8 +220,12 @@ def hil_amil(args, bin_dir, out, run):
     room = run.start("room", [locus, "room", layout, room_out, "--server", server, "--skew", "scene", "--seed",
                               str(args.seed), "--lead-in", "2", "--reflections", str(args.reflections),
                               "--self-gain", str(args.self_gain), "--node-origins", origins_csv], env=env, stdout=open(room_log, "w"))
-    wait_for(lambda: os.path.isdir(os.path.join(room_out, "iio", player, "dev")), 20, "the room's IIO trees",
-             [("room", room)])
+
+    def room_said(pattern):
+        with open(room_log) as f:
+            return re.search(pattern, f.read())
+    # its ports and every IIO tree exist once it says so
+    wait_for(lambda: room_said(r"room: \d+ devices of"), 30, "the room's ports and IIO trees", [("room", room)])
 
     print(f"== 3/5 {1 + len(listeners)} locusd nodes (JACK capture/playback, IIO IMU, MQTT link, amil), one gesture",
           flush=True)
@@ -225,7 +234,15 @@ def hil_amil(args, bin_dir, out, run):
     map_url = None
     events = []  # (arrival monotonic ns, message) from the map's SSE stream
     stop_sse = threading.Event()
+    def connected(ident):
+        path = os.path.join(out, "logs", f"node-{ident}.log")
+        with open(path) as f:
+            return f"connected room:{ident}_mic_1 -> {ident}:in_1" in f.read()
+
     for ident in listeners + [player]:  # the player last: its listeners hear its first beep
+        if ident == player:  # ... once every listener captures (the player beeps as soon as it rests)
+            wait_for(lambda: all(connected(i) for i in listeners), 90, "every listener to capture from the room",
+                     [("room", room)] + [("locusd " + k, v) for k, v in nodes.items()])
         cfg = node_config(args, devs[ident], player, server, mqtt_port, room_out,
                           os.path.join(out, "nodes", ident + ".jsonl"), os.path.join(out, "track.csv"))
         path = os.path.join(out, "nodes", ident + ".yaml")
@@ -247,10 +264,6 @@ def hil_amil(args, bin_dir, out, run):
             p = run.start("node-" + ident, cmd, env=env)
         nodes[ident] = p
 
-    def room_said(pattern):
-        with open(room_log) as f:
-            return re.search(pattern, f.read())
-
     alive = [("room", room), ("jackd", jackd)] + [("locusd " + k, v) for k, v in nodes.items()]
     wait_for(lambda: room_said(r"layout starts at room time"), 90, "every node to connect to the room", alive)
     m = room_said(r"layout starts at room time ([0-9.eE+-]+) s \(in [0-9.]+ s\) and ends ([0-9.eE+-]+) s later")
@@ -261,6 +274,7 @@ def hil_amil(args, bin_dir, out, run):
     t0 = time.monotonic()
     cpu0 = {k: cpu_s(p) for k, p in pids.items()}
     peak_rss = {k: 0.0 for k in pids}
+    peak_shm = {k: 0.0 for k in pids}
     est_path = os.path.join(out, "nodes", player + ".jsonl")
 
     def estimates():
@@ -269,7 +283,8 @@ def hil_amil(args, bin_dir, out, run):
     while time.monotonic() < deadline:
         for k, p in pids.items():
             try:
-                peak_rss[k] = max(peak_rss[k], rss_mb(p))
+                rss, shm = rss_mb(p)
+                peak_rss[k], peak_shm[k] = max(peak_rss[k], rss), max(peak_shm[k], shm)
             except (FileNotFoundError, ProcessLookupError):
                 pass
         for name, p in alive:
@@ -342,7 +357,8 @@ def hil_amil(args, bin_dir, out, run):
         "located": summary.get("targets_located"), "expected": summary.get("targets_expected"),
         "mean_direction_error_deg": summary.get("mean_direction_error_deg"),
         "median_distance_error_pct": summary.get("median_distance_error_pct"),
-        "latency_ms": latencies, "cpu_pct_of_one_core": cpu, "peak_rss_mb": peak_rss, "gesture_wall_s": wall,
+        "latency_ms": latencies, "cpu_pct_of_one_core": cpu, "peak_rss_mb": peak_rss, "peak_rss_shmem_mb": peak_shm,
+        "gesture_wall_s": wall,
         "node_playback_xruns": xruns, "node_frames_lost": lost, "room": room_summary, "map_url": map_url,
         "emissions": len({r["t_emission"] for r in arrivals}), "out": out,
     }
@@ -355,9 +371,10 @@ def hil_amil(args, bin_dir, out, run):
     node_rss = [v for k, v in peak_rss.items() if k.startswith("locusd")]
     print(f"CPU (% of one core over {wall:.1f} s): player {cpu['locusd ' + player]:.1f}, listeners median "
           f"{statistics.median([cpu['locusd ' + i] for i in listeners]):.1f} (max {max(node_cpu):.1f}), room "
-          f"{cpu['room']:.1f}, jackd {cpu['jackd']:.1f}, mosquitto {cpu['mosquitto']:.1f}; peak RSS: player "
-          f"{peak_rss['locusd ' + player]:.0f} MB, listeners median {statistics.median(node_rss):.0f} MB, room "
-          f"{peak_rss['room']:.0f} MB")
+          f"{cpu['room']:.1f}, jackd {cpu['jackd']:.1f}, mosquitto {cpu['mosquitto']:.1f}; peak RSS (of it JACK's "
+          f"shared memory): player {peak_rss['locusd ' + player]:.0f} MB ({peak_shm['locusd ' + player]:.0f}), listeners "
+          f"median {statistics.median(node_rss):.0f} MB ({statistics.median(v for k, v in peak_shm.items() if k.startswith('locusd')):.0f}), "
+          f"room {peak_rss['room']:.0f} MB ({peak_shm['room']:.0f})")
     print(f"xruns: nodes' playback {sum(xruns.values())} in all; {room_summary}")
     if args.json:
         with open(args.json, "w") as f:
