@@ -126,6 +126,7 @@ class AmilLocalizer final : public Localizer {
     tc.quiet_bins = static_cast<int>(params.get_int("quiet_bins"));
     tc.min_rest_s = params.get_float("min_rest_s");
     tc.session_gap_s = params.get_float("session_gap_s");
+    tc.session_movements = static_cast<int>(params.get_int("session_movements"));
     tc.max_gap_s = params.get_float("max_gap_s");
     tc.accel_scale_error = params.get_float("accel_scale_error");
     tc.drift_shape_factor = params.get_float("drift_shape_factor");
@@ -344,6 +345,10 @@ class AmilLocalizer final : public Localizer {
     if (listeners_.empty()) return false;
     const std::vector<amil::Beep> beeps = session_beeps(s, nullptr);
     if (beeps.empty()) return false;
+    // A live player beeps in every pause: a session closed at its last stroke (session_movements) is
+    // ready once the beep of its last pause is in the self-recording, not before (else it would be
+    // solved without it as soon as the listeners reported the earlier ones).
+    if (emitter_ != nullptr && !s.pauses.empty() && beeps.back().player_time_s < s.pauses.back().t_start_s) return false;
     std::vector<double> times;
     for (const auto& b : beeps) times.push_back(b.player_time_s);
     for (const auto& [id, l] : listeners_) {
@@ -591,6 +596,9 @@ const ParamSchema& schema() {
       int_param("quiet_bins", 2, 1, 100, "", "Consecutive quiet bins that end a movement."),
       float_param("min_rest_s", 0.3, 0.0, 60.0, "s", "Rest needed before a gesture (gravity and gyro bias)."),
       float_param("session_gap_s", 2.0, 0.1, 3600.0, "s", "A rest this long ends the gesture session."),
+      int_param("session_movements", 0, 0, 1000, "",
+                "> 0: a session also ends when its Nth movement ends (a gesture of known strokes: 4 for one triangle drawn from the middle of its base); "
+                "live, its estimates then follow its last beep instead of session_gap_s later. 0 = by session_gap_s only."),
       float_param("max_gap_s", 0.25, 0.001, 60.0, "s", "Longer IMU gaps abandon the current session."),
       float_param("beep_f0_hz", 18000.0, 1.0, 96000.0, "Hz", "Beep (lfm) start frequency when the scene does not declare one."),
       float_param("beep_f1_hz", 22000.0, 1.0, 96000.0, "Hz", "Beep end frequency."),

@@ -370,6 +370,16 @@ void GestureTracker::end_movement(double t_end) {
   rest_n_ = 0;
   prev_bin_.clear();  // its samples belong to the movement
   if (session_open_ && on_pause_) on_pause_(sessions_.back(), t_end);
+  // A gesture of known strokes is complete at its last pause (its last beep is still to come: the
+  // session's last pause stays open, t_end_s = +inf, until the next session starts).
+  if (session_open_ && cfg_.session_movements > 0 &&
+      sessions_.back().movements.size() >= static_cast<std::size_t>(cfg_.session_movements)) {
+    Session& s = sessions_.back();
+    s.closed = true;
+    s.t_end_s = s.movements.back().t_end_s;
+    session_open_ = false;
+    if (on_closed_) on_closed_(s, t_end);
+  }
 }
 
 void GestureTracker::close_session() {

@@ -48,7 +48,8 @@
 // de-drift leaves behind: a fraction of the drift it removed (v_end·T), accumulating; plus a floor.
 //
 // Sessions: a session (one localisation: one or several gestures) opens at the first movement after a
-// rest of at least `min_rest_s` and closes after a rest of `session_gap_s` (or by close_session()).
+// rest of at least `min_rest_s` and closes after a rest of `session_gap_s`, when its
+// `session_movements`-th movement ends (when set), or by close_session().
 // Its start frame ("player_start@T", docs/eval.md): origin = the device body origin at T (the start
 // of the first movement), z = up (the rest gravity before T), y = the body y axis at T projected on
 // the horizontal plane (body −z when body y is within 11.5° of vertical: an upright phone), x = y × z.
@@ -71,6 +72,9 @@ struct TrackerConfig {
   int quiet_bins = 2;                   ///< consecutive quiet bins that end a movement
   double min_rest_s = 0.3;              ///< rest needed before a session can start (gravity, gyro bias)
   double session_gap_s = 2.0;           ///< a rest this long closes the session
+  int session_movements = 0;            ///< > 0: the session also closes when its Nth movement ends (a
+                                        ///< gesture of known strokes, e.g. 4 for one triangle from its base: live, the
+                                        ///< estimate need not wait session_gap_s); 0 = by session_gap_s only
   double max_gap_s = 0.25;              ///< longer IMU gaps abandon the open session
   Eigen::Vector3d speaker_body_m = Eigen::Vector3d::Zero();  ///< speaker in the body frame (geometry)
   // Uncertainty model of the tracked positions (see "Uncertainty" above).

@@ -46,7 +46,7 @@
 
 #include <sdbus-c++/sdbus-c++.h>
 
-#include "hal/iio/fake_iio_tree.hpp"
+#include "iio/fake_iio_tree.hpp"
 #include "integration/live/live_support.hpp"
 #include "integration/mqtt/broker.hpp"
 
@@ -176,7 +176,7 @@ class ImuFeeder {
 
  private:
   void run() {
-    locus::test::FifoWriter w(fifo_);
+    locus::iio_fake::FifoWriter w(fifo_);
     bool connected = false;
     auto next = SteadyClock::now();
     for (std::int64_t k = 0; !stop_; ++k) {
@@ -184,18 +184,11 @@ class ImuFeeder {
       std::this_thread::sleep_until(next);
       if (!connected) connected = w.connect(50ms);
       if (!connected || stalled_) continue;
-      std::vector<std::uint8_t> b(24, 0);
-      const std::array<std::int16_t, 6> raw{static_cast<std::int16_t>(k % 200), 16384, 0, 0, 0,
-                                            static_cast<std::int16_t>(k % 50)};
-      for (std::size_t i = 0; i < 6; ++i) {
-        b[2 * i] = static_cast<std::uint8_t>(static_cast<std::uint16_t>(raw[i]) & 0xff);
-        b[2 * i + 1] = static_cast<std::uint8_t>(static_cast<std::uint16_t>(raw[i]) >> 8);
-      }
+      const std::int16_t raw[6]{static_cast<std::int16_t>(k % 200), 16384, 0, 0, 0, static_cast<std::int16_t>(k % 50)};
       timespec ts{};
       clock_gettime(CLOCK_MONOTONIC, &ts);
-      const std::uint64_t ns = static_cast<std::uint64_t>(ts.tv_sec) * 1000000000ull + static_cast<std::uint64_t>(ts.tv_nsec);
-      for (std::size_t i = 0; i < 8; ++i) b[16 + i] = static_cast<std::uint8_t>(ns >> (8 * i));
-      if (w.write(b)) {
+      const std::int64_t ns = static_cast<std::int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
+      if (w.write(locus::iio_fake::pack_accel_gyro_scan(raw, ns))) {
         written_.fetch_add(1);
       } else {
         w.close();  // the reader went away (EPIPE; SIGPIPE is ignored): wait for it to open again
@@ -521,7 +514,7 @@ TEST(Soak, EveryFaultKindIsSurvivedAndEveryStreamResumes) {
   Players player(jackd.name());
   BluezMock bluez(dir);
   ASSERT_EQ(bluez.start(), "");
-  locus::test::FakeIioTree iio;
+  locus::iio_fake::FakeIioTree iio;
   iio.add_imu(0);
 
   const fs::path out_fifo = dir / "out.fifo";

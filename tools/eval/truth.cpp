@@ -155,7 +155,9 @@ TruthData load_truth(const std::string& scene_dir) {
     TruthObject o;
     o.id = d.id;
     o.is_device = true;
-    o.has_audio = !d.audio.empty();
+    // A device listens when it has a recording, or microphones: the scene of a live run (`locus room`)
+    // declares the devices' microphones, their recordings stayed on the nodes.
+    o.has_audio = !d.audio.empty() || !d.mics_m.empty();
     o.has_imu = !d.imu.empty();
     o.has_speaker = d.speaker_m.has_value();
     if (d.anchor_position_m) o.anchor_m = Vec3((*d.anchor_position_m)[0], (*d.anchor_position_m)[1], (*d.anchor_position_m)[2]);

@@ -12,6 +12,9 @@
 #include "eval/cli.hpp"
 #include "record/cli.hpp"
 #include "replay/cli.hpp"
+#ifdef LOCUS_WITH_ROOM
+#include "room/cli.hpp"
+#endif
 #include "sim/cli.hpp"
 #include "train/cli.hpp"
 
@@ -33,6 +36,10 @@ int main(int argc, char** argv) {
   plugins->add_option("--plugin-dir", plugin_dirs, "also load every *.so in this directory (repeatable)");
   plugins->add_flag("--json", json, "machine-readable output");
 
+#ifndef LOCUS_WITH_ROOM
+  auto* room = cli.add_subcommand("room", "a hardware-in-the-loop room (not built: it needs JACK)");
+  room->allow_extras();
+#endif
   auto* version = cli.add_subcommand("version", "print the version, the plugin ABI and the optional backends built in");
 
   std::vector<locus::app::Subcommand> modules = {
@@ -40,6 +47,9 @@ int main(int argc, char** argv) {
       locus::app::add_eval_command(cli),
       locus::app::add_record_command(cli),
       locus::app::add_replay_command(cli),
+#ifdef LOCUS_WITH_ROOM
+      locus::app::add_room_command(cli),
+#endif
       locus::app::add_simulate_command(cli),
       locus::app::add_train_command(cli),
   };
@@ -56,6 +66,12 @@ int main(int argc, char** argv) {
   for (const auto& m : modules) {
     if (*m.cmd) return m.run();
   }
+#ifndef LOCUS_WITH_ROOM
+  if (*room) {
+    std::cerr << "locus room: " << locus::build::not_built_reason(*locus::build::find_optional_backend("jack")) << "\n";
+    return locus::app::kExitBadConfig;
+  }
+#endif
   if (*version) {
     std::cout << "locus " << LOCUS_VERSION << " (plugin ABI " << LOCUS_PLUGIN_ABI_VERSION << ")\n";
     // Optional backends (LOCUS_WITH_<X>, cmake/LocusBackends.cmake): one line each, built in or why not.

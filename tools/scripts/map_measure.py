@@ -43,7 +43,9 @@ def hwm_mb(pid):
     return float("nan")
 
 
-def sse_client(host, port, latencies, stop):
+def sse_client(host, port, latencies, stop, on_event=None):
+    """Reads the map's /events until `stop`: appends (event type, ms from its hand-over to its arrival
+    here) to `latencies` and, when given, calls on_event(message, arrival CLOCK_MONOTONIC ns)."""
     conn = http.client.HTTPConnection(host, port, timeout=30)
     conn.request("GET", "/events")
     resp = conn.getresponse()
@@ -62,6 +64,8 @@ def sse_client(host, port, latencies, stop):
             if event == "locus" and data:
                 msg = json.loads(data)
                 latencies.append((msg["event"]["type"], (now - msg["mono_ns"]) / 1e6))
+                if on_event is not None:
+                    on_event(msg, now)
             event, data = None, None
 
 

@@ -115,6 +115,11 @@ class DeviceRunner {
   bool done() const noexcept { return done_; }
 
   std::uint64_t sensor_events_delivered() const noexcept { return sensor_events_; }
+  /// [any thread] CLOCK_MONOTONIC seconds of the live audio's frame 0 (the last origin its source
+  /// reported; NaN for non-live audio or before it started). Kept after the source stopped (which may
+  /// forget it): what relates the device's clock to the host's (`locus room` writes the truth clocks of
+  /// a hardware-in-the-loop run from it).
+  double audio_origin_monotonic_s() const noexcept { return origin_seen_s_.load(std::memory_order_relaxed); }
   /// Sensor events moved from CLOCK_MONOTONIC onto the audio timeline ("Time base" above).
   std::uint64_t sensor_events_translated() const noexcept { return translated_; }
   /// Monotonic-time sensor events delivered untranslated because the live audio had no origin yet.
@@ -156,6 +161,7 @@ class DeviceRunner {
   std::uint64_t sensor_events_ = 0;
   std::uint64_t waits_ = 0;
   double origin_s_ = std::numeric_limits<double>::quiet_NaN();  // last finite frame_zero_monotonic_s()
+  std::atomic<double> origin_seen_s_{std::numeric_limits<double>::quiet_NaN()};  // same, read every step
   std::uint64_t translated_ = 0;
   std::uint64_t untranslated_ = 0;
   std::uint64_t origin_waits_ = 0;
@@ -173,6 +179,9 @@ struct DeviceStats {
   bool has_playback = false;         ///< the device has a `playback:` section
   std::uint64_t playback_xruns = 0;  ///< underruns of the playback sink
   std::uint64_t late_emissions = 0;  ///< emissions cut or refused (Emitter::late_emissions)
+  /// CLOCK_MONOTONIC seconds of the live audio's frame 0 (DeviceRunner::audio_origin_monotonic_s);
+  /// NaN for non-live audio.
+  double audio_origin_monotonic_s = std::numeric_limits<double>::quiet_NaN();
   std::string source_error;          ///< first error of the device's sources ("imu source: ..." for sensors,
                                      ///< "playback: ..." for the sink)
 };

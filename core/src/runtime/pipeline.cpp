@@ -129,6 +129,10 @@ bool DeviceRunner::place_on_timeline(Sensor& s, bool stop_requested) noexcept {
 
 bool DeviceRunner::step(bool stop_requested) noexcept {
   if (done_) return false;
+  if (audio_live_ && audio_source_ != nullptr) {  // the origin, for audio_origin_monotonic_s() (one atomic load)
+    const double origin = audio_source_->frame_zero_monotonic_s();
+    if (std::isfinite(origin)) origin_seen_s_.store(origin, std::memory_order_relaxed);
+  }
   // A lossless device waits for the dispatcher rather than dropping events.
   if (all_non_live_ && backpressure_ != nullptr &&
       backpressure_->size_approx() > backpressure_->capacity() / 2) {
@@ -392,6 +396,9 @@ void Pipeline::flush() {
                                    std::to_string(s.late_emissions) + " emissions late or refused"
                              : std::string(),
               s.source_error.empty() ? "" : ", source error: " + s.source_error);
+    // What relates this device's clock to the host's (docs/room.md: the truth clocks of a HIL run).
+    if (std::isfinite(s.audio_origin_monotonic_s))
+      log->info("device {}: audio frame 0 at CLOCK_MONOTONIC {:.9f} s", s.id, s.audio_origin_monotonic_s);
   }
   if (writer_) {
     writer_->flush();
@@ -453,6 +460,7 @@ std::vector<DeviceStats> Pipeline::stats() const {
       if (s.source_error.empty() && !dev->sink->error().empty()) s.source_error = "playback: " + dev->sink->error();
     }
     if (dev->device_runner) {
+      s.audio_origin_monotonic_s = dev->device_runner->audio_origin_monotonic_s();
       s.sensor_events = dev->device_runner->sensor_events_delivered();
       s.sensor_untranslated = dev->device_runner->sensor_events_untranslated();
     }

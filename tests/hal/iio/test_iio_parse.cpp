@@ -7,11 +7,11 @@
 #include <string>
 #include <vector>
 
-#include "fake_iio_tree.hpp"
+#include "iio/fake_iio_tree.hpp"
 #include "iio/iio_parse.hpp"
 
 using namespace locus::hal::iio;
-using locus::test::FakeIioTree;
+using locus::iio_fake::FakeIioTree;
 
 namespace {
 

@@ -12,7 +12,7 @@
 #include <thread>
 #include <vector>
 
-#include "fake_iio_tree.hpp"
+#include "iio/fake_iio_tree.hpp"
 #include "iio/iio_devices.hpp"
 #include "iio/iio_source.hpp"
 #include "locus/registry.hpp"
@@ -20,8 +20,8 @@
 
 using namespace locus;
 using namespace locus::hal::iio;
-using locus::test::FakeIioTree;
-using locus::test::FifoWriter;
+using locus::iio_fake::FakeIioTree;
+using locus::iio_fake::FifoWriter;
 using namespace std::chrono_literals;
 
 namespace {

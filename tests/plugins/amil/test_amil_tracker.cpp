@@ -147,6 +147,31 @@ TEST(AmilTracker, LongRestSplitsSessions) {
   EXPECT_DOUBLE_EQ(tr.sessions()[0].pauses.back().t_end_s, tr.sessions()[1].t_start_s);
 }
 
+TEST(AmilTracker, SessionMovementsClosesAtTheLastStroke) {
+  // One triangle = 4 strokes: with session_movements 4 the session closes when the 4th ends (at its
+  // pause, where the live player beeps last), not session_gap_s later; its last pause stays open.
+  const auto g = amil_test::make_gesture(3);
+  TrackerConfig cfg;
+  cfg.session_movements = 4;
+  GestureTracker tr(cfg);
+  double closed_at = -1.0, last_pause_at = -1.0;
+  tr.on_pause([&](const locus::plugins::amil::Session&, double t) { last_pause_at = t; });
+  tr.on_session_closed([&](const locus::plugins::amil::Session&, double t) { closed_at = t; });
+  for (std::size_t i = 0; i < g.t_s.size(); ++i) tr.add(g.t_s[i], g.accel[i], g.gyro[i]);
+  ASSERT_EQ(tr.sessions().size(), 1u);
+  const auto& s = tr.sessions().front();
+  EXPECT_TRUE(s.closed);
+  EXPECT_EQ(s.movements.size(), 4u);
+  EXPECT_EQ(s.pauses.size(), 5u);
+  EXPECT_DOUBLE_EQ(closed_at, last_pause_at);  // closed by the count, at the 4th stroke's end
+  EXPECT_LT(closed_at, g.traj->pauses().back().start_s + 0.5);
+  EXPECT_TRUE(std::isinf(s.pauses.back().t_end_s));
+  // Without the count the same gesture closes only after session_gap_s of rest.
+  GestureTracker plain;
+  for (std::size_t i = 0; i < g.t_s.size(); ++i) plain.add(g.t_s[i], g.accel[i], g.gyro[i]);
+  EXPECT_FALSE(plain.sessions().front().closed && plain.sessions().front().t_end_s < closed_at - 1e-9);
+}
+
 TEST(AmilTracker, RestAloneOpensNoSessionAndBadInputIsCounted) {
   GestureTracker tr;
   const Eigen::Vector3d g(0.01, -0.02, 9.81), w(0.001, 0.0, -0.002);

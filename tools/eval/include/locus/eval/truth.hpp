@@ -53,7 +53,7 @@ struct ClockModel {
 struct TruthObject {
   std::string id;
   bool is_device = false;               ///< false: emitter (records nothing)
-  bool has_audio = false;               ///< device records sound (listener)
+  bool has_audio = false;               ///< device records sound (listener): an audio.wav or microphones
   bool has_imu = false;
   bool has_speaker = false;
   std::optional<Vec3> anchor_m;         ///< position known to the system (infrastructure)

@@ -1,8 +1,12 @@
-// A fake IIO sysfs tree in a private temp dir (the layout of /work/shared/docs/real-components.md, IIO):
+// A fake IIO sysfs tree in a directory (the layout of /work/shared/docs/real-components.md, IIO):
 //   <root>/sys/bus/iio/devices/iio:deviceN/{name, sampling_frequency, in_<type>_<axis>_raw,
 //       in_<type>_scale, buffer/{enable,length,watermark}, scan_elements/in_<ch>_{en,index,type}}
 //   <root>/dev/iio:deviceN   a FIFO standing in for the buffered character device
-// plus a writer for the FIFO that packs scans the way the kernel does. Header-only, for the IIO tests.
+// plus a writer for the FIFO and the packing of scans the way the kernel does them.
+//
+// Why it lives in hal/iio (header-only, compiled only where included): the IIO tests, the soak test
+// and `locus room` (tools/room: the IMU of every device of a hardware-in-the-loop run) all play an
+// IMU through the real `iio` source this way; one copy of the layout keeps them in step with it.
 #pragma once
 
 #include <fcntl.h>
@@ -24,15 +28,20 @@
 
 #include "iio/iio_parse.hpp"
 
-namespace locus::test {
+namespace locus::iio_fake {
 
 class FakeIioTree {
  public:
+  /// A tree in a fresh private temp dir ($TMPDIR or /tmp), removed by the destructor.
   FakeIioTree() {
     const char* tmp = std::getenv("TMPDIR");
     std::string templ = std::string(tmp && *tmp ? tmp : "/tmp") + "/locus-iio-XXXXXX";
     if (::mkdtemp(templ.data()) == nullptr) throw std::runtime_error("mkdtemp failed: " + std::string(std::strerror(errno)));
     root_ = templ;
+  }
+  /// A tree in `root` (created; must not hold a tree already), removed by the destructor.
+  explicit FakeIioTree(const std::string& root) : root_(root) {
+    std::filesystem::create_directories(root_);
   }
   ~FakeIioTree() {
     std::error_code ec;
@@ -84,6 +93,10 @@ class FakeIioTree {
     std::string magn_scale = "0.000146";      // Gauss per LSB
     std::string sampling_frequency = "104.000000";
     bool buffered = true;
+    /// Content of current_timestamp_clock ("" = no such file). A real device has it (the kernel's
+    /// default is realtime); the `iio` source writes `monotonic` into it and only then takes the scan
+    /// timestamps as CLOCK_MONOTONIC (moved onto the audio timeline of a live node).
+    std::string timestamp_clock;
   };
 
   /// A complete accel + gyro (+ magn) device at index n with a FIFO at dev/iio:device<n>. Scan indices:
@@ -95,6 +108,7 @@ class FakeIioTree {
     const std::string d = dev_rel(n);
     write(d + "name", o.name + "\n");
     if (!o.sampling_frequency.empty()) write(d + "sampling_frequency", o.sampling_frequency + "\n");
+    if (!o.timestamp_clock.empty()) write(d + "current_timestamp_clock", o.timestamp_clock + "\n");
     write(d + "in_accel_scale", o.accel_scale + "\n");
     write(d + "in_anglvel_scale", o.gyro_scale + "\n");
     const char* axes[] = {"x", "y", "z"};
@@ -129,7 +143,21 @@ class FakeIioTree {
   std::string root_;
 };
 
-/// Writes to a FIFO from the test side: connects once the reader has opened it (within a deadline).
+/// One scan of add_imu()'s default layout with accel and gyro enabled (what the `iio` source enables):
+/// accel x/y/z, anglvel x/y/z as le:s16 (12 bytes), 4 bytes of padding, the le:s64 timestamp (ns):
+/// 24 bytes. `raw` are the six readings in LSB (value = raw * scale).
+inline std::vector<std::uint8_t> pack_accel_gyro_scan(const std::int16_t (&raw)[6], std::int64_t timestamp_ns) {
+  std::vector<std::uint8_t> b(24, 0);
+  for (std::size_t i = 0; i < 6; ++i) {
+    b[2 * i] = static_cast<std::uint8_t>(static_cast<std::uint16_t>(raw[i]) & 0xff);
+    b[2 * i + 1] = static_cast<std::uint8_t>(static_cast<std::uint16_t>(raw[i]) >> 8);
+  }
+  const auto ns = static_cast<std::uint64_t>(timestamp_ns);
+  for (std::size_t i = 0; i < 8; ++i) b[16 + i] = static_cast<std::uint8_t>(ns >> (8 * i));
+  return b;
+}
+
+/// Writes to a FIFO (the device side): connects once the reader has opened it (within a deadline).
 class FifoWriter {
  public:
   explicit FifoWriter(std::string path) : path_(std::move(path)) {}
@@ -173,4 +201,4 @@ class FifoWriter {
   int fd_ = -1;
 };
 
-}  // namespace locus::test
+}  // namespace locus::iio_fake

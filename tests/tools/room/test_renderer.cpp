@@ -1,0 +1,201 @@
+// RoomRenderer (tools/room/renderer.hpp) against closed forms: a band-limited burst (3 kHz, far below
+// the converters' low-pass) played into a speaker port must come out of a microphone port as
+// gain · x(te), te solving the model's equations: the delay r/c plus the fixed latency, 1/r spreading,
+// a skewed microphone clock resampled, each first-order image at its mirrored distance times the wall's
+// coefficient, the device's own speaker times self_gain. Also: the layout reader's errors.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <vector>
+
+#include "locus/room/layout.hpp"
+#include "locus/room/renderer.hpp"
+
+namespace locus::room {
+namespace {
+
+constexpr double kFs = 44100.0, kC = 343.2;
+
+/// A 3 kHz burst with a Hann envelope over 10 ms starting at t0 (closed form, any real t).
+double burst(double t, double t0) {
+  const double u = (t - t0) / 0.01;
+  if (u <= 0.0 || u >= 1.0) return 0.0;
+  return 0.5 * std::sin(2.0 * M_PI * 3000.0 * (t - t0)) * (0.5 - 0.5 * std::cos(2.0 * M_PI * u));
+}
+
+Layout two_devices(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  Layout l;
+  l.sample_rate_hz = kFs;
+  l.speed_of_sound_mps = kC;
+  l.room_size_m = Eigen::Vector3d(5.0, 6.0, 3.0);
+  for (int k = 0; k < 2; ++k) {
+    LayoutDevice d;
+    d.id = k == 0 ? "S" : "R";
+    d.mics_body_m = {Eigen::Vector3d::Zero()};
+    d.speaker_body_m = Eigen::Vector3d::Zero();
+    d.trajectory = std::make_shared<sim::StaticTrajectory>(k == 0 ? a : b);
+    l.devices.push_back(d);
+  }
+  return l;
+}
+
+/// Renders 1.5 s with the burst on S's speaker at t0 (S plays on room time), returns the mics.
+std::vector<std::vector<float>> render(RoomRenderer& r, double t0) {
+  constexpr std::uint32_t kN = 512;
+  const std::size_t blocks = static_cast<std::size_t>(1.5 * kFs / kN);
+  std::vector<std::vector<float>> out(r.total_mics());
+  std::vector<float> spk(kN), silent(kN, 0.0f);
+  std::vector<std::vector<float>> mic(r.total_mics(), std::vector<float>(kN));
+  std::vector<float*> mic_ptrs;
+  for (auto& m : mic) mic_ptrs.push_back(m.data());
+  r.start_layout_at(0.0);
+  for (std::size_t b = 0; b < blocks; ++b) {
+    for (std::uint32_t j = 0; j < kN; ++j) spk[j] = static_cast<float>(burst(static_cast<double>(b * kN + j) / kFs, t0));
+    const float* spk_ptrs[2] = {spk.data(), silent.data()};
+    r.process(spk_ptrs, mic_ptrs.data(), kN);
+    for (std::size_t i = 0; i < mic.size(); ++i) out[i].insert(out[i].end(), mic[i].begin(), mic[i].end());
+  }
+  return out;
+}
+
+/// The model's closed form at microphone sample k of device d for a static pair at distance(s) `paths`
+/// (distance, gain factor).
+double expected(const RoomRenderer& r, std::size_t d, double k, const std::vector<std::pair<double, double>>& paths, double t0) {
+  const double t_rx = r.clock_rate(d) * k / kFs + r.clock_offset_s(d);
+  double y = 0.0;
+  for (const auto& [dist, g] : paths) y += g * 0.1 / dist * burst(t_rx - dist / kC, t0);
+  return y;
+}
+
+double max_error(const RoomRenderer& r, const std::vector<float>& got, std::size_t d,
+                 const std::vector<std::pair<double, double>>& paths, double t0, double* peak = nullptr) {
+  double err = 0.0, pk = 0.0;
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    const double e = expected(r, d, static_cast<double>(k), paths, t0);
+    err = std::max(err, std::abs(got[k] - e));
+    pk = std::max(pk, std::abs(e));
+  }
+  if (peak) *peak = pk;
+  return err;
+}
+
+TEST(RoomRenderer, DirectPathDelayAndSpreadingMatchTheClosedForm) {
+  const Layout l = two_devices({1.0, 1.0, 1.0}, {3.1, 1.7, 1.2});
+  RendererConfig cfg;
+  cfg.noise_rms = 0.0;
+  RoomRenderer r(l, cfg);
+  const auto mics = render(r, 0.5);
+  const double dist = (Eigen::Vector3d(3.1, 1.7, 1.2) - Eigen::Vector3d(1.0, 1.0, 1.0)).norm();
+  double peak = 0.0;
+  const double err = max_error(r, mics[1], 1, {{dist, 1.0}}, 0.5, &peak);
+  EXPECT_GT(peak, 0.02);           // 0.5 · 0.1 / 2.2 m
+  EXPECT_LT(err, 2e-3 * peak);     // interpolation error only
+  // S hears itself at min_distance (the same point): clipped at full scale, self_gain 1
+  float self_peak = 0.0f;
+  for (float v : mics[0]) self_peak = std::max(self_peak, std::abs(v));
+  EXPECT_FLOAT_EQ(self_peak, 1.0f);
+  EXPECT_GT(r.clipped(), 0u);
+}
+
+TEST(RoomRenderer, SkewedMicrophoneIsResampled) {
+  const Layout l = two_devices({1.0, 1.0, 1.0}, {2.0, 1.0, 1.0});
+  RendererConfig cfg;
+  cfg.noise_rms = 0.0;
+  cfg.skew_ppm = {0.0, 400.0};  // large, so that the shift (0.2 ms = 8.8 samples at 0.5 s) is obvious
+  RoomRenderer r(l, cfg);
+  const auto mics = render(r, 0.5);
+  double peak = 0.0;
+  const double err = max_error(r, mics[1], 1, {{1.0, 1.0}}, 0.5, &peak);
+  EXPECT_GT(peak, 0.04);
+  EXPECT_LT(err, 2e-3 * peak);
+  // and the unskewed model would be far off
+  RendererConfig plain = cfg;
+  plain.skew_ppm.clear();
+  RoomRenderer p(l, plain);
+  EXPECT_GT(max_error(p, mics[1], 1, {{1.0, 1.0}}, 0.5), 0.2 * peak);
+}
+
+TEST(RoomRenderer, FirstOrderImagesAndSelfGain) {
+  const Eigen::Vector3d a(1.0, 1.5, 1.0), b(3.0, 2.0, 1.4);
+  const Layout l = two_devices(a, b);
+  RendererConfig cfg;
+  cfg.noise_rms = 0.0;
+  cfg.reflection_order = 1;
+  cfg.reflection = 0.6;
+  cfg.self_gain = 0.0;
+  cfg.room_size_m = Eigen::Vector3d(5.0, 6.0, 3.0);
+  RoomRenderer r(l, cfg);
+  const auto mics = render(r, 0.3);
+  std::vector<std::pair<double, double>> paths{{(b - a).norm(), 1.0}};
+  for (int axis = 0; axis < 3; ++axis) {
+    for (int side = 0; side < 2; ++side) {
+      Eigen::Vector3d img = a;
+      img[axis] = side == 0 ? -a[axis] : 2.0 * (*cfg.room_size_m)[axis] - a[axis];
+      paths.emplace_back((b - img).norm(), 0.6);
+    }
+  }
+  double peak = 0.0;
+  const double err = max_error(r, mics[1], 1, paths, 0.3, &peak);
+  EXPECT_GT(peak, 0.02);
+  EXPECT_LT(err, 3e-3 * peak);
+  EXPECT_GT(max_error(r, mics[1], 1, {paths[0]}, 0.3), 0.05 * peak);  // the images are there
+  // self_gain 0: S hears only its own reflections (quieter than the direct path to R would be at 1 m)
+  float self_peak = 0.0f;
+  for (float v : mics[0]) self_peak = std::max(self_peak, std::abs(v));
+  EXPECT_LT(self_peak, 0.05f);
+  EXPECT_GT(self_peak, 0.0f);
+}
+
+TEST(RoomRenderer, OnsetsAreTheSpeakersFirstSoundAfterSilence) {
+  const Layout l = two_devices({1.0, 1.0, 1.0}, {2.0, 1.0, 1.0});
+  RendererConfig cfg;
+  RoomRenderer r(l, cfg);
+  render(r, 0.25);
+  Onset o;
+  ASSERT_TRUE(r.pop_onset(o));
+  EXPECT_EQ(o.device, 0u);
+  EXPECT_NEAR(static_cast<double>(o.frame), 0.25 * kFs, 2.0);
+  EXPECT_FALSE(r.pop_onset(o));
+}
+
+TEST(RoomRenderer, RefusesBadConfigs) {
+  const Layout l = two_devices({1.0, 1.0, 1.0}, {2.0, 1.0, 1.0});
+  RendererConfig cfg;
+  cfg.reflection_order = 1;
+  cfg.room_size_m.reset();
+  EXPECT_THROW(RoomRenderer(l, cfg), std::invalid_argument);
+  cfg.reflection_order = 0;
+  cfg.skew_ppm = {1.0};
+  EXPECT_THROW(RoomRenderer(l, cfg), std::invalid_argument);
+  cfg.skew_ppm = {0.0, 2000.0};
+  EXPECT_THROW(RoomRenderer(l, cfg), std::invalid_argument);
+}
+
+TEST(RoomLayout, ErrorsNameTheFileAndWhatWasExpected) {
+  const auto dir = std::filesystem::temp_directory_path() / ("locus-room-layout-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "scene.yaml") << "format: locus-scene/1\nname: x\nsample_rate: 44100\nspeed_of_sound: 343\n"
+                                       "environment: {room: [3, 4, 2]}\ndevices:\n  - id: A\n    mics:\n      - [0, 0, 0]\n"
+                                       "truth:\n  trajectories: truth.csv\n";
+  std::ofstream(dir / "truth.csv") << "t,id,x,y,z,qw,qx,qy,qz\n0,A,5,1,1,1,0,0,0\n";
+  try {
+    load_layout(dir.string());
+    FAIL() << "a device outside the room was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("outside environment.room"), std::string::npos) << e.what();
+  }
+  std::ofstream(dir / "truth.csv") << "t,id,x,y,z,qw,qx,qy,qz\n0,B,1,1,1,1,0,0,0\n";
+  try {
+    load_layout(dir.string());
+    FAIL() << "a device without a position was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("device 'A': no position"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace locus::room
