@@ -12,6 +12,21 @@
 # Every daemon is started here and stopped by PID (also on failure); everything lives in a temp dir.
 # Usage: test_record.sh LOCUS_BIN PLAYER_BIN SOURCE_DIR PYTHON3
 set -u
+# One retry, only when the first run failed while jackd itself reported xruns: a late PLAYER cycle
+# leaves the recorder a period of silence that no recorder can see as a gap (its own callback ran on
+# time), so bit-exactness is then untestable; the retry is printed. Two failures fail.
+if [ -z "${LOCUS_RECORD_ATTEMPT:-}" ]; then
+  first=$(mktemp)
+  LOCUS_RECORD_ATTEMPT=1 bash "$0" "$@" 2>&1 | tee "$first"
+  status=${PIPESTATUS[0]}
+  if [ "$status" -ne 0 ] && grep -q "^info jackd reported xruns" "$first"; then
+    echo "retry: the first run failed while jackd reported xruns (see above); running once more"
+    LOCUS_RECORD_ATTEMPT=2 bash "$0" "$@"
+    status=$?
+  fi
+  rm -f "$first"
+  exit "$status"
+fi
 LOCUS=$1
 PLAYER=$2
 SRC=$3
