@@ -114,13 +114,23 @@ void add_run_options(CLI::App& cmd, RunOptions& opts, bool config_required) {
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}));
 }
 
+sigset_t stop_signal_set() {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  return set;
+}
+
+sigset_t block_stop_signals() {
+  const sigset_t set = stop_signal_set();
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+  return set;
+}
+
 int run_node(const RunOptions& opts) {
   // Block the stop signals before any thread exists, so only sigtimedwait below ever sees them.
-  sigset_t stop_signals;
-  sigemptyset(&stop_signals);
-  sigaddset(&stop_signals, SIGINT);
-  sigaddset(&stop_signals, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  const sigset_t stop_signals = block_stop_signals();
   // A daemon outlives its consumers: an output pipe whose reader went away is a counted, logged write
   // error (JsonLinesWriter), not the end of the node (which also feeds MQTT and its localizers).
   std::signal(SIGPIPE, SIG_IGN);

@@ -4,6 +4,7 @@
 // Exit status: 0 success, 1 runtime failure, 2 bad config or usage, 3 a plugin library failed to load.
 #pragma once
 
+#include <csignal>
 #include <functional>
 #include <optional>
 #include <string>
@@ -34,6 +35,13 @@ struct PipelineHooks {
   /// Once, after everything was flushed (`interrupted`: stopped by SIGINT/SIGTERM).
   std::function<void(bool interrupted)> ended;
 };
+
+/// SIGINT and SIGTERM: the signals that stop a command (its main thread waits for them with
+/// sigtimedwait()).
+sigset_t stop_signal_set();
+/// Blocks stop_signal_set() in the calling thread and in every thread it starts later, so that only
+/// the command's own sigtimedwait() sees them; call before any thread exists. Returns the set.
+sigset_t block_stop_signals();
 
 inline constexpr int kExitOk = 0;
 inline constexpr int kExitFailure = 1;

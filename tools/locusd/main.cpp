@@ -25,11 +25,7 @@
 int main(int argc, char** argv) {
   // The stop signals are blocked before any thread exists (the map's server threads included), so
   // only the sigtimedwait of the main loop ever sees them.
-  sigset_t stop_signals;
-  sigemptyset(&stop_signals);
-  sigaddset(&stop_signals, SIGINT);
-  sigaddset(&stop_signals, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  const sigset_t stop_signals = locus::app::block_stop_signals();
 
   CLI::App cli{"locusd: the Locus localization daemon"};
   locus::app::RunOptions opts;

@@ -9,6 +9,7 @@
 #include <ctime>
 #include <iostream>
 
+#include "app.hpp"
 #include "locus/config.hpp"
 #include "map_cli.hpp"
 #include "mqtt/mqtt_connection.hpp"
@@ -104,10 +105,7 @@ int run_hub(MapServer& map, const std::vector<std::string>& hub_params, Logger& 
   }
   map.set_status("hub: " + conn->endpoint() + " " + prefix + "/#", false);
   log.info("hub: listening to " + prefix + "/+/+/+ on " + conn->endpoint());
-  sigset_t stop_signals;
-  sigemptyset(&stop_signals);
-  sigaddset(&stop_signals, SIGINT);
-  sigaddset(&stop_signals, SIGTERM);
+  const sigset_t stop_signals = app::stop_signal_set();
   bool connected = true;
   for (;;) {
     timespec timeout{0, 200'000'000};

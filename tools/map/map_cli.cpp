@@ -7,6 +7,7 @@
 #include <iostream>
 #include <map>
 
+#include "app.hpp"
 #include "locus/build_options.hpp"
 #include "locus/config.hpp"
 
@@ -83,10 +84,7 @@ void linger(MapServer& map, Logger& log) {
   if (s <= 0.0) return;
   log.info("still serving " + map.url() + " for " + std::to_string(static_cast<int>(s)) +
            " s (linger_s); SIGINT/SIGTERM ends it");
-  sigset_t stop_signals;
-  sigemptyset(&stop_signals);
-  sigaddset(&stop_signals, SIGINT);
-  sigaddset(&stop_signals, SIGTERM);
+  const sigset_t stop_signals = app::stop_signal_set();
   timespec timeout{static_cast<time_t>(s), static_cast<long>((s - static_cast<double>(static_cast<time_t>(s))) * 1e9)};
   sigtimedwait(&stop_signals, nullptr, &timeout);
 }

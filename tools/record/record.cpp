@@ -710,11 +710,7 @@ void Recorder::write_recording_yaml(const std::string& reason) const {
 // ---------------------------------------------------------------------------------------------------
 
 int run_record(const RecordOptions& opts) {
-  sigset_t stop_signals;
-  sigemptyset(&stop_signals);
-  sigaddset(&stop_signals, SIGINT);
-  sigaddset(&stop_signals, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);  // inherited by every thread started below
+  const sigset_t stop_signals = app::block_stop_signals();  // inherited by every thread started below
 
   RecorderSettings settings;
   settings.out_dir = opts.out_dir;

@@ -127,11 +127,7 @@ bool has_stream(const scene::DeviceSpec& d) {
 }  // namespace
 
 int run_replay(const ReplayOptions& opts) {
-  sigset_t stop_signals;
-  sigemptyset(&stop_signals);
-  sigaddset(&stop_signals, SIGINT);
-  sigaddset(&stop_signals, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  const sigset_t stop_signals = app::block_stop_signals();
 
   Registry registry;
   register_builtins(registry);

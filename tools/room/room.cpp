@@ -481,11 +481,7 @@ std::vector<double> parse_skew(const std::string& spec, const Layout& layout) {
 }
 
 int run_room(const RoomOptions& opts) {
-  sigset_t stop_signals;
-  sigemptyset(&stop_signals);
-  sigaddset(&stop_signals, SIGINT);
-  sigaddset(&stop_signals, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  const sigset_t stop_signals = app::block_stop_signals();
 
   Layout layout;
   RendererConfig rc = opts.renderer;
