@@ -194,7 +194,7 @@ class MontageLocalizer final : public Localizer {
   void advance_time(double t) {
     now_ = std::max(now_, t);
     close_rounds(false);
-    if (const auto s = sync_before(now_); s && now_ - last_progress_ >= 0.5) {
+    if (const auto s = sync_before(now_); s && closed_until_ > -1e299 && now_ - last_progress_ >= 0.5) {
       last_progress_ = now_;
       // Every round up to the last closed one has been sent, every step up to now_.
       link_->publish(topic_progress(prefix_, device_), encode(ProgressMessage{device_, std::min(now_, closed_until_) - *s}));

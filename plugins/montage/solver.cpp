@@ -98,11 +98,15 @@ void Formation::add_step(std::size_t u, double tau_s, double stride_m, double he
   tr.stride.push_back(stride_m);
   tr.heading.push_back(heading_rad);
   tr.cum.push_back(prev + stride_m * Eigen::Vector2d(std::cos(heading_rad), std::sin(heading_rad)));
-  if (offset_rad && std::isfinite(*offset_rad)) {
-    tr.prior_offset = *offset_rad;
-    if (!tr.has_offset && !localized_[u]) delta_[u] = *offset_rad;
-    tr.has_offset = true;
-  }
+  tr.offset.push_back(offset_rad && std::isfinite(*offset_rad) ? *offset_rad : std::nan(""));
+}
+
+std::optional<double> Formation::prior_offset(std::size_t u, double tau_s) const {
+  const Track& tr = tracks_[u];
+  const auto it = std::upper_bound(tr.t.begin(), tr.t.end(), tau_s);
+  for (auto i = static_cast<std::ptrdiff_t>(it - tr.t.begin()) - 1; i >= 0; --i)
+    if (std::isfinite(tr.offset[static_cast<std::size_t>(i)])) return tr.offset[static_cast<std::size_t>(i)];
+  return std::nullopt;
 }
 
 std::size_t Formation::add_round(double tau_s, std::vector<RangeObs> ranges) {
@@ -389,9 +393,9 @@ void Formation::adjust(std::size_t k) {
       if (origin_ && u == *origin_) {
         H(cd, cd) += 1.0;  // no unknown: keep the system regular
       } else {
-        const double sd = tracks_[u].has_offset ? cfg_.offset_prior_std_rad : std::numbers::pi;
-        double ed = std::remainder(delta_[u] - tracks_[u].prior_offset, 2.0 * std::numbers::pi);
-        if (!tracks_[u].has_offset) ed = 0.0;
+        const std::optional<double> prior = prior_offset(u, rounds_[k].tau_s);
+        const double sd = prior ? cfg_.offset_prior_std_rad : std::numbers::pi;
+        const double ed = prior ? std::remainder(delta_[u] - *prior, 2.0 * std::numbers::pi) : 0.0;
         H(cd, cd) += 1.0 / (sd * sd);
         g(cd) += ed / (sd * sd);
       }
@@ -449,6 +453,10 @@ std::vector<UserFix> Formation::solve(std::size_t k) {
   std::vector<UserFix> out(users_.size());
   if (k >= rounds_.size()) return out;
   for (std::size_t r = solved_; r <= k; ++r) {
+    // Users not localized yet take their device's latest offset estimate (the origin keeps its own).
+    for (std::size_t u = 0; u < users_.size(); ++u)
+      if (!localized_[u])
+        if (const auto p = prior_offset(u, rounds_[r].tau_s)) delta_[u] = *p;
     if (origin_ && r > base_)
       for (std::size_t u = 0; u < users_.size(); ++u)
         if (localized_[u]) positions_[r][u] = positions_[r - 1][u] + move(u, rounds_[r - 1].tau_s, rounds_[r].tau_s);

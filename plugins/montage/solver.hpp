@@ -125,9 +125,7 @@ class Formation {
   struct Track {
     std::vector<double> t, stride, heading;
     std::vector<Eigen::Vector2d> cum;  ///< raw position at each step end
-    double offset_sum_c = 0.0, offset_sum_s = 0.0;
-    bool has_offset = false;
-    double prior_offset = 0.0;
+    std::vector<double> offset;        ///< the device's offset estimate at each step (NaN: none yet)
   };
   struct RoundData {
     double tau_s = 0.0;
@@ -140,6 +138,9 @@ class Formation {
   };
 
   Eigen::Vector2d raw_at(std::size_t u, double t) const;
+  /// The device's latest offset estimate sent with a step up to tau (so a solve depends only on the
+  /// data up to its round, not on when messages arrived).
+  std::optional<double> prior_offset(std::size_t u, double tau_s) const;
   void try_localize(std::size_t k);
   std::vector<Candidate> pair_candidates(std::size_t i, std::size_t j, std::size_t base, std::size_t k) const;
   void adjust(std::size_t k);

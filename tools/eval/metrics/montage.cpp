@@ -1,6 +1,6 @@
 // Montage (paper 002): trace deviation (relative_trace estimates aligned over the whole walk, error
 // as a percentage of the path walked) and stride error: step events matched to truth_steps.csv in
-// true time (docs/eval.md).
+// true time (docs/eval.md); with estimates, only the steps the localizer re-published.
 #include "locus/eval/metric.hpp"
 
 #include <algorithm>
@@ -19,7 +19,10 @@ bool expects(const TargetQuery& q) {
 
 void score(GroupContext& g) {
   score_positions(g, /*final_only=*/false, /*path_pct=*/true);
-  score_strides(g);
+  // A localizer that re-publishes the steps with its calibrated stride (montage: detector = its
+  // instance) is scored on those; step events alone (the "(steps)" group) on every step.
+  if (g.scored().empty()) score_strides(g);
+  else score_strides(g, g.scored().front().e->plugin);
 }
 
 }  // namespace
