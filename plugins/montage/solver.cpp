@@ -411,8 +411,14 @@ void Formation::adjust(std::size_t k) {
     // Users seen by no range in the window still have their movement chain; regularise lightly.
     for (int c = 0; c < nvar; ++c) H(c, c) += 1e-9;
     Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
-    const Eigen::VectorXd dx = -ldlt.solve(g);
+    Eigen::VectorXd dx = -ldlt.solve(g);
     if (!dx.allFinite()) break;
+    // Trust region: a Gauss-Newton step on a weakly constrained user (one range, a heading offset the
+    // ranges barely see) can be metres; take at most 1 m per position and 0.2 rad / 0.1 per δ / k.
+    double shrink = 1.0;
+    for (int c = 0; c < npos; ++c) shrink = std::min(shrink, 1.0 / std::max(1e-12, std::abs(dx(c))));
+    for (int c = npos; c < nvar; ++c) shrink = std::min(shrink, ((c - npos) % 2 == 0 ? 0.2 : 0.1) / std::max(1e-12, std::abs(dx(c))));
+    dx *= shrink;
     for (std::size_t q = w0; q <= k; ++q)
       for (std::size_t u = 0; u < n; ++u)
         if (localized_[u]) positions_[q][u] += dx.segment<2>(pcol(q, u));
