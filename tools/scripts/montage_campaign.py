@@ -60,7 +60,7 @@ def coverage(scene, est_file):
 
 
 def score(locus, scene, config, work):
-    est = os.path.join(work, 'est.jsonl')
+    est = os.path.join(work, os.path.basename(os.path.normpath(scene)) + '.est.jsonl')
     run([os.path.join(locus, 'locus'), 'replay', scene, '--config', config, '--speed', 'max', '-o', est], 'montage_campaign')
     r = run([os.path.join(locus, 'locus'), 'eval', scene, est, '--metric', 'montage', '--json'], 'montage_campaign')
     p = json.loads(r.stdout)['plugins'][0]

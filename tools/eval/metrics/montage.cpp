@@ -1,6 +1,7 @@
 // Montage (paper 002): trace deviation (relative_trace estimates aligned over the whole walk, error
 // as a percentage of the path walked) and stride error: step events matched to truth_steps.csv in
-// true time (docs/eval.md); with estimates, only the steps the localizer re-published.
+// true time (docs/eval.md); when the localizer re-published steps (detector = its instance:
+// stride calibrated by ranging), only those.
 #include "locus/eval/metric.hpp"
 
 #include <algorithm>
@@ -21,8 +22,11 @@ void score(GroupContext& g) {
   score_positions(g, /*final_only=*/false, /*path_pct=*/true);
   // A localizer that re-publishes the steps with its calibrated stride (montage: detector = its
   // instance) is scored on those; step events alone (the "(steps)" group) on every step.
-  if (g.scored().empty()) score_strides(g);
-  else score_strides(g, g.scored().front().e->plugin);
+  std::string_view plugin;
+  if (!g.scored().empty())
+    for (const StepRecord& s : g.file().steps)
+      if (s.detector == g.scored().front().e->plugin) plugin = g.scored().front().e->plugin;
+  score_strides(g, plugin);
 }
 
 }  // namespace
