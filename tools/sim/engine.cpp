@@ -939,6 +939,12 @@ WriteReport SceneSimulator::write(const std::string& out_dir) const {
         const double local = d.clock.local_from_true(t_rx);
         if (local >= 0.0 && local < local_end) rows.emplace_back(local, e->source_id);
       }
+      for (const auto& [t_send, src] : sim_.radio_broadcasts) {
+        const double t_rx = t_send + sim_.radio_latency_s + rng.uniform(-sim_.radio_jitter_s, sim_.radio_jitter_s);
+        if (sim_.radio_loss_probability > 0.0 && rng.uniform(0.0, 1.0) < sim_.radio_loss_probability) continue;
+        const double local = d.clock.local_from_true(t_rx);
+        if (local >= 0.0 && local < local_end) rows.emplace_back(local, src);
+      }
       std::stable_sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
       scene::SyncCsvWriter w((fs::path(out_dir) / spec.sync).string());
       for (const auto& [t, src] : rows) {

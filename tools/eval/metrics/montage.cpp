@@ -1,6 +1,7 @@
 // Montage (paper 002): trace deviation (relative_trace estimates aligned over the whole walk, error
 // as a percentage of the path walked) and stride error: step events matched to truth_steps.csv in
-// true time (docs/eval.md).
+// true time (docs/eval.md); when the localizer re-published steps (detector = its instance:
+// stride calibrated by ranging), only those.
 #include "locus/eval/metric.hpp"
 
 #include <algorithm>
@@ -19,7 +20,13 @@ bool expects(const TargetQuery& q) {
 
 void score(GroupContext& g) {
   score_positions(g, /*final_only=*/false, /*path_pct=*/true);
-  score_strides(g);
+  // A localizer that re-publishes the steps with its calibrated stride (montage: detector = its
+  // instance) is scored on those; step events alone (the "(steps)" group) on every step.
+  std::string_view plugin;
+  if (!g.scored().empty())
+    for (const StepRecord& s : g.file().steps)
+      if (s.detector == g.scored().front().e->plugin) plugin = g.scored().front().e->plugin;
+  score_strides(g, plugin);
 }
 
 }  // namespace

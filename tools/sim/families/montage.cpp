@@ -7,8 +7,10 @@
 // heading estimation. Walkers differ in height, step frequency (1.7-2.1 Hz) and stride model;
 // formation: pairs side by side (spacing_m apart), pairs one behind the other (row_gap_m).
 // Truth: truth.csv (every phone), truth_steps.csv (heel strikes and stride lengths).
-// Deviations: outdoors = free field (no ground reflection); the "ranging command" radio message is
-// not simulated (phones emit at the same true time plus their own speaker latency).
+// The protocol's radio start signal: W1 broadcasts it once, 20 ms before the first round's command
+// (every phone's sync.csv holds its reception, radio latency and jitter as the engine models them);
+// every phone then emits once per period_s after it, plus its own speaker latency, as in the foreign
+// Montage world. Deviation: outdoors = free field (no ground reflection).
 #include <stdexcept>
 #include <cmath>
 #include <numbers>
@@ -101,6 +103,7 @@ Simulation make_montage(const FamilyOptions& opts) {
     d.speaker_response = {300.0, 0.0, 2};
     d.mic_response = {60.0, 0.0, 2};
     d.imu = std::make_shared<PhoneImu>(phone_imu_config(100.0, prof.imu_noise_scale, true));
+    d.record_sync = true;
     // Recording level: the phone's own tone (its speaker 5 mm from the mic) peaks at half full scale,
     // as a phone sets its input level; at unit gain the 1/r self-path clipped it (TUM does the same).
     {
@@ -116,6 +119,7 @@ Simulation make_montage(const FamilyOptions& opts) {
         sim.acoustics.obstructions.push_back(Obstruction{sim.devices[a].id, sim.devices[b].id, prof.obstruction_db});
 
   sim.duration_s = opts.duration_s.value_or(t_end + 0.5);
+  sim.radio_broadcasts.emplace_back(t_start - 0.5 - 0.02, sim.devices.front().id);
   for (double t = t_start - 0.5; t + 0.2 < sim.duration_s; t += period_s) {
     for (const auto& d : sim.devices) {
       Emission e;

@@ -290,6 +290,9 @@ struct Simulation {
   double radio_latency_s = 200e-6;        ///< sync reception: mean delay after sending
   double radio_jitter_s = 50e-6;          ///< sync reception: uniform ± jitter
   double radio_loss_probability = 0.0;    ///< sync reception: a sync is lost with this probability
+  /// Radio messages not tied to an emission (Montage's start signal): (true send time, sender id),
+  /// received by every device with record_sync like the emission syncs (latency, jitter, loss).
+  std::vector<std::pair<double, std::string>> radio_broadcasts;
   std::optional<Eigen::Vector3d> magnetic_field_world_ut;
   std::string environment_yaml;           ///< extra free-form environment entries (YAML mapping text); the
                                           ///< room size is added automatically

@@ -1,0 +1,470 @@
+// The `montage` localizer: round assembly, movement vectors, the reporter's formation. Design in
+// montage.hpp; solver.cpp and movement.cpp hold the maths, messages.cpp the link format.
+#include "montage.hpp"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <map>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "messages.hpp"
+#include "movement.hpp"
+#include "solver.hpp"
+
+namespace locus::plugins::montage {
+
+namespace {
+
+struct Detection {
+  double t_s;
+  std::size_t user;
+  double confidence;
+};
+
+class MontageLocalizer final : public Localizer {
+ public:
+  ~MontageLocalizer() override {
+    if (link_ != nullptr)
+      for (std::uint64_t s : subs_) link_->unsubscribe(s);
+  }
+
+  /// [main]
+  void configure(const Params& params, HostContext& ctx) override {
+    log_ = &ctx.log;
+    link_ = &ctx.link;
+    instance_ = std::string(ctx.instance);
+    device_ = std::string(ctx.device);
+    if (device_.empty()) throw std::runtime_error("montage: runs on a device (a node's device or a replay device), not node-wide");
+    prefix_ = params.get_string("topic");
+    detector_ = params.get_string("detector");
+    steps_detector_ = params.get_string("steps_detector");
+    c_ = params.get_float("speed_of_sound_mps");
+    max_range_ = params.get_float("max_range_m");
+    const std::vector<double> gate = params.get_floats("round_window_s");
+    if (gate.size() != 2) throw std::runtime_error("montage: param 'round_window_s': expected [before_s, after_s]");
+    before_s_ = gate[0];
+    after_s_ = gate[1];
+    wait_s_ = params.get_float("solve_wait_s");
+    std_scale_ = params.get_float("std_scale");
+    std_floor_ = params.get_float("std_floor_m");
+    publish_steps_ = params.get_bool("publish_steps");
+    FormationConfig fc;
+    fc.range_std_m = params.get_float("range_std_m");
+    fc.step_std_m = params.get_float("step_std_m");
+    fc.drift_std_m_per_m = params.get_float("drift_std_m_per_m");
+    fc.offset_prior_std_rad = params.get_float("offset_prior_std_rad");
+    fc.scale_prior_std = params.get_float("stride_scale_prior_std");
+    fc.window_rounds = static_cast<int>(params.get_int("window_rounds"));
+
+    // The users: the scene's gold emitters in scene order (the goldcode detector's template order),
+    // or param `users` (a live node).
+    {
+      std::string id;
+      for (char ch : params.get_string("users") + ",") {
+        if (ch == ',' || ch == ' ') {
+          if (!id.empty()) users_.push_back(id);
+          id.clear();
+        } else {
+          id += ch;
+        }
+      }
+    }
+    if (users_.empty()) {
+      if (ctx.geometry == nullptr || ctx.geometry->scene_emits.empty())
+        throw std::runtime_error("montage: param 'users': expected the users' device ids in code order (the goldcode "
+                                 "detector's `codes` order); none given and the host knows no scene");
+      for (const SceneSignal& s : ctx.geometry->scene_emits)
+        if (s.signal.type == "gold") users_.push_back(s.id);
+    }
+    if (users_.size() < 2) throw std::runtime_error("montage: at least two users (gold emitters) are needed");
+    for (std::size_t i = 0; i < users_.size(); ++i) {
+      if (users_[i] == device_) me_ = i;
+      for (std::size_t j = 0; j < i; ++j)
+        if (users_[i] == users_[j]) throw std::runtime_error("montage: user '" + users_[i] + "' listed twice");
+    }
+    if (!me_) throw std::runtime_error("montage: device '" + device_ + "' is not one of the users (gold emitters)");
+    self_m_ = params.get_float("self_distance_m");
+    if (ctx.geometry != nullptr && ctx.geometry->has_speaker && ctx.geometry->mic_count > 0) {
+      const auto& m = ctx.geometry->mics_m[0];
+      const auto& s = ctx.geometry->speaker_m;
+      self_m_ = std::sqrt(std::pow(m[0] - s[0], 2) + std::pow(m[1] - s[1], 2) + std::pow(m[2] - s[2], 2));
+    }
+    reporter_ = params.get_string("reporter");
+    if (reporter_.empty()) reporter_ = users_.back();
+    if (std::find(users_.begin(), users_.end(), reporter_) == users_.end())
+      throw std::runtime_error("montage: param 'reporter': '" + reporter_ + "' is not one of the users");
+    if (device_ == reporter_) {
+      formation_ = std::make_unique<Formation>(users_, fc);
+      book_ = RoundBook(params.get_float("round_match_s"));
+      progress_.assign(users_.size(), -1e300);
+      subs_.push_back(link_->subscribe(prefix_ + "/round/+", [this](const LinkMessage& m) { on_round(m); }));
+      subs_.push_back(link_->subscribe(prefix_ + "/step/+", [this](const LinkMessage& m) { on_step(m); }));
+      subs_.push_back(link_->subscribe(prefix_ + "/progress/+", [this](const LinkMessage& m) { on_progress(m); }));
+    }
+  }
+
+  /// [main]
+  std::vector<EventType> subscriptions() const override {
+    return {EventType::AudioDetection, EventType::RadioSync, EventType::Step, EventType::Attitude, EventType::ImuSample};
+  }
+
+  /// [main]
+  void on_event(const Event& event, Publisher& out) override {
+    if (const auto* s = std::get_if<RadioSync>(&event)) {
+      if (s->device.view() != device_) return;
+      syncs_.push_back(s->t_s);
+      std::sort(syncs_.begin(), syncs_.end());
+    } else if (const auto* d = std::get_if<AudioDetection>(&event)) {
+      if (d->device.view() != device_ || !(d->sample_rate_hz > 0)) return;
+      if (!detector_.empty() && d->detector.view() != detector_) return;
+      if (d->template_index >= users_.size()) {
+        ++unknown_codes_;
+        return;
+      }
+      const double t = d->frame / d->sample_rate_hz;
+      // The detector reports its own emission up to a window early (the canceller looks ahead) and
+      // the other users' codes in time order: a round closes once another user's arrival after its
+      // window, or an own emission well after it, or the IMU stream 5 s later, has come.
+      if (d->template_index == *me_) {
+        own_.push_back(t);
+        own_now_ = std::max(own_now_, t);
+      } else {
+        dets_.push_back(Detection{t, d->template_index, d->confidence});
+        audio_now_ = std::max(audio_now_, t);
+      }
+      close_rounds(false);
+      advance_time(t);
+    } else if (const auto* a = std::get_if<Attitude>(&event)) {
+      if (a->device.view() != device_) return;
+      q_ = Eigen::Quaterniond(a->q_wxyz[0], a->q_wxyz[1], a->q_wxyz[2], a->q_wxyz[3]).normalized();
+      have_q_ = true;
+      double h = a->heading_rad;
+      if (!headings_.empty()) h = headings_.back().second + std::remainder(h - last_raw_heading_, 2.0 * M_PI);
+      last_raw_heading_ = a->heading_rad;
+      headings_.emplace_back(a->t_s, h);
+      while (headings_.size() > 2 && headings_.back().first - headings_.front().first > 10.0) headings_.pop_front();
+      advance_time(a->t_s);
+    } else if (const auto* im = std::get_if<ImuSample>(&event)) {
+      if (im->device.view() != device_ || !have_q_) return;
+      const Eigen::Vector3d a(im->accel_mps2[0], im->accel_mps2[1], im->accel_mps2[2]);
+      walk_.add_sample(im->t_s, q_ * a);
+    } else if (const auto* st = std::get_if<Step>(&event)) {
+      if (st->device.view() != device_) return;
+      if (!steps_detector_.empty() && st->detector.view() != steps_detector_) return;
+      step(*st);
+    }
+    if (formation_) process(out, false);
+  }
+
+  /// [main]
+  void finish(Publisher& out) override {
+    close_rounds(true);
+    if (formation_) process(out, true);
+    if (no_sync_ > 0)
+      log_->warn("montage " + device_ + ": " + std::to_string(no_sync_) +
+                 " own emissions before any start signal (RadioSync): not ranged");
+    if (unknown_codes_ > 0) log_->warn("montage " + device_ + ": " + std::to_string(unknown_codes_) + " detections of codes beyond the users");
+    if (bad_ > 0) log_->warn("montage: " + std::to_string(bad_) + " malformed link messages ignored (first: " + first_bad_ + ")");
+    if (formation_) {
+      std::string k;
+      for (std::size_t u = 0; u < users_.size(); ++u)
+        k += " " + users_[u] + " k=" + std::to_string(formation_->stride_scale(u)) +
+             " offset=" + std::to_string(formation_->heading_offset_rad(u) * 180.0 / M_PI) + "deg";
+      log_->info("montage reporter " + device_ + ": " + std::to_string(book_.rounds().size()) + " rounds, " +
+                 std::to_string(ranges_) + " ranges (" + std::to_string(formation_->dropped_ranges()) + " dropped as outliers), " +
+                 std::to_string(late_reports_) + " late reports, " + std::to_string(published_) + " estimates;" + k);
+    }
+  }
+
+ private:
+  // ------------------------------------------------------------------ every device
+  std::optional<double> sync_before(double t) const {
+    std::optional<double> s;
+    for (double x : syncs_)
+      if (x <= t) s = x;
+    return s;
+  }
+
+  void advance_time(double t) {
+    now_ = std::max(now_, t);
+    close_rounds(false);
+    if (const auto s = sync_before(now_); s && closed_until_ > -1e299 && now_ - last_progress_ >= 0.5) {
+      last_progress_ = now_;
+      // Every round up to the last closed one has been sent, every step up to now_.
+      link_->publish(topic_progress(prefix_, device_), encode(ProgressMessage{device_, std::min(now_, closed_until_) - *s}));
+    }
+  }
+
+  /// Own emissions whose round window has passed: their round message.
+  void close_rounds(bool all) {
+    std::sort(own_.begin(), own_.end());
+    while (!own_.empty()) {
+      const double end = own_.front() + after_s_;
+      if (!(all || audio_now_ > end || own_now_ > end + 1.5 || now_ > end + 5.0)) break;
+      const double e = own_.front();
+      own_.pop_front();
+      closed_until_ = std::max(closed_until_, e + 0.5);
+      if (e - last_own_ < 0.2) continue;  // the same emission twice
+      last_own_ = e;
+      const auto s = sync_before(e);
+      if (!s) {
+        ++no_sync_;
+        continue;
+      }
+      std::sort(dets_.begin(), dets_.end(), [](const Detection& a, const Detection& b) { return a.t_s < b.t_s; });
+      RoundMessage m;
+      m.device = device_;
+      m.tau_own_s = e - *s;
+      m.self_m = self_m_;
+      for (std::size_t u = 0; u < users_.size(); ++u) {
+        if (u == *me_) continue;
+        const Detection* best = nullptr;
+        for (const Detection& d : dets_)
+          if (d.user == u && d.t_s >= e - before_s_ && d.t_s <= e + after_s_ && (!best || d.confidence > best->confidence)) best = &d;
+        if (best) m.arrivals.emplace_back(users_[u], best->t_s - e);
+      }
+      log_->debug("montage " + device_ + ": round " + encode(m));
+      link_->publish(topic_round(prefix_, device_), encode(m));
+      while (!dets_.empty() && dets_.front().t_s < e - 2.0) dets_.pop_front();
+    }
+  }
+
+  double heading_mean(double t0, double t1) const {
+    double sum = 0.0;
+    int n = 0;
+    for (const auto& [t, h] : headings_)
+      if (t >= t0 && t <= t1) {
+        sum += h;
+        ++n;
+      }
+    if (n > 0) return sum / n;
+    // No sample inside: the nearest one.
+    double best = NAN, bd = 1e300;
+    for (const auto& [t, h] : headings_)
+      if (std::abs(t - 0.5 * (t0 + t1)) < bd) {
+        bd = std::abs(t - 0.5 * (t0 + t1));
+        best = h;
+      }
+    return best;
+  }
+
+  void step(const Step& st) {
+    if (!std::isfinite(st.stride_m) || !(st.stride_m >= 0.0)) return;
+    const double t0 = last_step_t_ && st.t_s - *last_step_t_ < 1.5 ? *last_step_t_
+                                                                   : st.t_s - 1.0 / std::max(0.5f, st.frequency_hz);
+    last_step_t_ = st.t_s;
+    const double h = heading_mean(t0, st.t_s);
+    if (!std::isfinite(h)) return;
+    walk_.add_step(t0, st.t_s, h);
+    const auto s = sync_before(st.t_s);
+    if (!s) return;
+    StepMessage m;
+    m.device = device_;
+    m.tau_s = st.t_s - *s;
+    m.t_s = st.t_s;
+    m.stride_m = std::min<double>(st.stride_m, 5.0);
+    m.heading_rad = h;
+    const auto off = walk_.offset_rad();
+    m.offset_valid = off.has_value();
+    m.offset_rad = off.value_or(0.0);
+    link_->publish(topic_step(prefix_, device_), encode(m));
+  }
+
+  // ------------------------------------------------------------------ the reporter
+  std::optional<std::size_t> user_index(const std::string& id) const {
+    for (std::size_t u = 0; u < users_.size(); ++u)
+      if (users_[u] == id) return u;
+    return std::nullopt;
+  }
+  void bad(const LinkMessage& m, const std::string& why) {
+    if (bad_++ == 0) first_bad_ = m.topic + ": " + why;
+  }
+  /// The publishing device (the topic's last level) must be the message's device, and a user.
+  std::optional<std::size_t> sender(const LinkMessage& m, const std::string& device) {
+    const std::string last = m.topic.substr(m.topic.rfind('/') + 1);
+    if (last != device) {
+      bad(m, "device '" + device + "' published on another device's topic");
+      return std::nullopt;
+    }
+    const auto u = user_index(device);
+    if (!u) bad(m, "'" + device + "' is not a user");
+    return u;
+  }
+
+  void on_round(const LinkMessage& lm) {
+    std::string why;
+    const auto m = decode_round(lm.payload, &why);
+    if (!m) return bad(lm, why);
+    const auto u = sender(lm, m->device);
+    if (!u) return;
+    if (m->tau_own_s < processed_tau_ + 0.3) {  // a round already solved
+      ++late_reports_;
+      return;
+    }
+    book_.add(*m);
+    progress_[*u] = std::max(progress_[*u], m->tau_own_s);
+  }
+  void on_step(const LinkMessage& lm) {
+    std::string why;
+    const auto m = decode_step(lm.payload, &why);
+    if (!m) return bad(lm, why);
+    const auto u = sender(lm, m->device);
+    if (!u) return;
+    formation_->add_step(*u, m->tau_s, m->stride_m, m->heading_rad,
+                         m->offset_valid ? std::optional<double>(m->offset_rad) : std::nullopt);
+    steps_[*u].push_back(*m);
+    progress_[*u] = std::max(progress_[*u], m->tau_s);
+  }
+  void on_progress(const LinkMessage& lm) {
+    std::string why;
+    const auto m = decode_progress(lm.payload, &why);
+    if (!m) return bad(lm, why);
+    const auto u = sender(lm, m->device);
+    if (!u) return;
+    progress_[*u] = std::max(progress_[*u], m->tau_s);
+  }
+
+  /// Solves every round that every user has passed by solve_wait_s (all at the end).
+  void process(Publisher& out, bool all) {
+    double min_progress = 1e300, max_progress = -1e300;
+    for (double p : progress_) {
+      if (p > -1e299) min_progress = std::min(min_progress, p);
+      max_progress = std::max(max_progress, p);
+    }
+    const auto& rounds = book_.rounds();
+    while (next_round_ < rounds.size()) {
+      const Round& r = rounds[next_round_];
+      // A silent user holds no round back for ever: 10 s after the others.
+      const bool ready = all || (r.tau_s + wait_s_ <= min_progress) || (r.tau_s + wait_s_ + 10.0 <= max_progress);
+      if (!ready) break;
+      std::vector<RangeObs> ranges = round_ranges(r, users_, c_, max_range_);
+      ranges_ += ranges.size();
+      for (const RangeObs& ro : ranges)
+        log_->debug("montage range tau " + std::to_string(r.tau_s) + " " + users_[ro.i] + "-" + users_[ro.j] + " " + std::to_string(ro.distance_m));
+      const std::size_t k = formation_->add_round(r.tau_s, std::move(ranges));
+      const std::vector<UserFix> fixes = formation_->solve(k);
+      processed_tau_ = r.tau_s;
+      publish(r, fixes, out);
+      ++next_round_;
+    }
+  }
+
+  void publish(const Round& r, const std::vector<UserFix>& fixes, Publisher& out) {
+    const auto s = sync_before(now_);
+    if (!s) return;  // the reporter's clock is unknown without its own start signal
+    for (std::size_t u = 0; u < users_.size(); ++u) {
+      // Steps up to this round, with the stride calibrated by ranging (k_u).
+      auto& st = steps_[u];
+      while (publish_steps_ && !st.empty() && st.front().tau_s <= r.tau_s) {
+        Step e;
+        e.device = DeviceId(users_[u]);
+        e.detector = NameTag(instance_);
+        e.t_s = st.front().t_s;
+        e.stride_m = static_cast<float>(st.front().stride_m * formation_->stride_scale(u));
+        e.frequency_hz = 0.0f;
+        out.publish(Event{e});
+        st.pop_front();
+      }
+      if (!fixes[u].localized) continue;
+      Estimate e;
+      e.plugin = NameTag(instance_);
+      e.reference = DeviceId(device_);
+      e.frame = NameTag("relative_trace");
+      e.target = NameTag(users_[u]);
+      e.t_s = r.tau_s + *s;
+      e.position_m = {fixes[u].position_m.x(), fixes[u].position_m.y(), 0.0};
+      e.dims = 2;
+      e.std_m = std::max(std_floor_, std_scale_ * fixes[u].std_m);
+      e.confidence = static_cast<float>(std::exp(-e.std_m / 1.0));
+      out.publish(Event{e});
+      ++published_;
+    }
+  }
+
+  Logger* log_ = nullptr;
+  Link* link_ = nullptr;
+  std::vector<std::uint64_t> subs_;
+  std::string instance_, device_, prefix_, detector_, steps_detector_, reporter_;
+  std::vector<std::string> users_;
+  std::optional<std::size_t> me_;
+  double c_ = 343.2, max_range_ = 40.0, before_s_ = 0.16, after_s_ = 0.22, wait_s_ = 2.0, self_m_ = 0.0;
+  double std_scale_ = 1.0, std_floor_ = 0.05;
+  bool publish_steps_ = true;
+  // every device
+  std::vector<double> syncs_;
+  std::deque<double> own_;
+  std::deque<Detection> dets_;
+  double now_ = -1e300, closed_until_ = -1e300, audio_now_ = -1e300, own_now_ = -1e300, last_progress_ = -1e300, last_own_ = -1e300;
+  Eigen::Quaterniond q_ = Eigen::Quaterniond::Identity();
+  bool have_q_ = false;
+  double last_raw_heading_ = 0.0;
+  std::deque<std::pair<double, double>> headings_;  ///< (t, unwrapped heading)
+  std::optional<double> last_step_t_;
+  WalkDirection walk_;
+  std::uint64_t no_sync_ = 0, unknown_codes_ = 0;
+  // the reporter
+  std::unique_ptr<Formation> formation_;
+  RoundBook book_;
+  std::vector<double> progress_;
+  std::map<std::size_t, std::deque<StepMessage>> steps_;
+  std::size_t next_round_ = 0;
+  double processed_tau_ = -1e300;
+  std::uint64_t bad_ = 0, late_reports_ = 0, ranges_ = 0, published_ = 0;
+  std::string first_bad_;
+};
+
+}  // namespace
+
+const ParamSchema& schema() {
+  static const ParamSchema s = {
+      string_param("topic", std::string("montage"), "Link topic prefix (<topic>/round|step|progress/<device>)."),
+      string_param("users", std::string(""),
+                   "The users' device ids, comma-separated, in the goldcode detector's code order (template k = the "
+                   "k-th); \"\" = the scene's gold emitters in scene order (replay)."),
+      string_param("reporter", std::string(""),
+                   "The device whose instance solves and publishes the formation (\"\" = the last user: on replay the "
+                   "last node to finish, so it has every other node's messages)."),
+      string_param("detector", std::string("goldcode"), "Instance name of the goldcode detector (\"\" = any)."),
+      string_param("steps_detector", std::string("steps"), "Instance name of the steps detector (\"\" = any)."),
+      float_param("speed_of_sound_mps", 343.2, 300.0, 400.0, "m/s", "Speed of sound."),
+      float_param("self_distance_m", 0.0, 0.0, 1.0, "m",
+                  "The device's speaker-to-mic distance when the host gives no geometry (replay takes it from the scene)."),
+      float_list_param("round_window_s", std::vector<double>{0.16, 0.22}, 0.0, 5.0, "s",
+                       "[before_s, after_s]: another user's arrival belongs to this device's round when it lies within "
+                       "before_s before to after_s after its own emission (the goldcode round gate).", 2, 2),
+      float_param("round_match_s", 0.3, 0.01, 10.0, "s",
+                  "Reports of two devices are the same round when their times since the start signal differ by less."),
+      float_param("max_range_m", 40.0, 1.0, 500.0, "m", "Longest ETOA range accepted."),
+      float_param("solve_wait_s", 2.0, 0.0, 60.0, "s",
+                  "The reporter solves a round once every user's messages have passed it by this much (steps lag)."),
+      float_param("range_std_m", 0.15, 0.001, 10.0, "m", "1-sigma of an ETOA range in the formation adjustment."),
+      float_param("step_std_m", 0.08, 0.001, 2.0, "m", "Per-step error of a movement vector (isotropic)."),
+      float_param("drift_std_m_per_m", 0.05, 0.0, 1.0, "", "Movement error growing with the distance walked."),
+      float_param("offset_prior_std_rad", 0.35, 0.001, 10.0, "rad",
+                  "Prior std of a walker's heading offset around its acceleration estimate."),
+      float_param("stride_scale_prior_std", 0.2, 0.001, 10.0, "", "Prior std of a walker's stride scale k around 1."),
+      int_param("window_rounds", std::int64_t{30}, 2, 1000, "", "Rounds adjusted together (older ones are fixed)."),
+      float_param("std_scale", 1.0, 0.01, 100.0, "", "Reported std_m = this x the adjustment's position std."),
+      float_param("std_floor_m", 0.05, 0.0, 10.0, "m", "Smallest reported std_m."),
+      bool_param("publish_steps", true,
+                 "The reporter publishes every walker's steps again (detector = this instance) with the stride "
+                 "calibrated by ranging."),
+  };
+  return s;
+}
+
+const locus_plugin_descriptor* descriptor() {
+  static const locus_plugin_descriptor d{
+      LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_LOCALIZER, "montage", "1",
+      "Montage: multi-user ETOA ranging with Gold codes, movement vectors, formation tracking (paper 002)", 0,
+      [] { return &schema(); }, nullptr, [] { return static_cast<Localizer*>(new MontageLocalizer); }};
+  return &d;
+}
+
+}  // namespace locus::plugins::montage
