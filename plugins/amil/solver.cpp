@@ -687,7 +687,10 @@ int resolve_cycles(const std::vector<Beep>& beeps, ListenerArrivals& arr, const 
     const Obs o = make_obs(beeps, arr, cfg, true);
     const int n = o.n();
     const int base = 2 * std::clamp(opt.max_shift, 1, 3) + 1;
-    if (n < 5 || std::pow(static_cast<double>(base), n - 1) > 2e5) return 0;  // 1 dof at least; bounded search
+    if (n < 5) return 0;  // 1 dof at least
+    // Every combination up to 2e5 of them (one gesture: 5 beeps, 625); beyond (three gestures: 13
+    // beeps, 5^12) a coordinate descent from no shift, its runner-up the best single change from it.
+    const bool exhaustive = std::pow(static_cast<double>(base), n - 1) <= 2e5;
     const std::vector<double> w(static_cast<std::size_t>(n), 1.0);
     const Fit f = best_fit_from(o, w, cfg, nullptr);
     if (!f.ok) return 0;
@@ -712,30 +715,68 @@ int resolve_cycles(const std::vector<Beep>& beeps, ListenerArrivals& arr, const 
     Score best{std::numeric_limits<double>::infinity(), {}, 0.0}, second{std::numeric_limits<double>::infinity(), {}, 0.0};
     std::vector<int> m(static_cast<std::size_t>(n), 0);
     Eigen::VectorXd rn(n);
-    const int combos = static_cast<int>(std::lround(std::pow(static_cast<double>(base), n - 1)));
     const int half = base / 2;
-    for (int code = 0; code < combos; ++code) {
-      int c3 = code;
-      for (int k = 1; k < n; ++k) {
-        m[static_cast<std::size_t>(k)] = c3 % base - half;
-        c3 /= base;
-      }
-      for (int k = 0; k < n; ++k) rn[k] = r[k] + cP * m[static_cast<std::size_t>(k)];
-      double geo = rn.dot(M * rn);
+    auto score = [&](const std::vector<int>& mm, double& env) {
+      for (int k = 0; k < n; ++k) rn[k] = r[k] + cP * mm[static_cast<std::size_t>(k)];
+      const double geo = rn.dot(M * rn);
       double mean = 0.0;
-      for (int k = 0; k < n; ++k) mean += off[static_cast<std::size_t>(k)] + m[static_cast<std::size_t>(k)];
+      for (int k = 0; k < n; ++k) mean += off[static_cast<std::size_t>(k)] + mm[static_cast<std::size_t>(k)];
       mean /= n;
-      double env = 0.0;
+      env = 0.0;
       for (int k = 0; k < n; ++k) {
-        const double d = off[static_cast<std::size_t>(k)] + m[static_cast<std::size_t>(k)] - mean;
+        const double d = off[static_cast<std::size_t>(k)] + mm[static_cast<std::size_t>(k)] - mean;
         env += d * d / env_var;
       }
-      const double chi2 = std::max(0.0, geo) + env;
+      return std::max(0.0, geo) + env;
+    };
+    auto consider = [&](const std::vector<int>& mm) {
+      double env = 0.0;
+      const double chi2 = score(mm, env);
       if (chi2 < best.chi2) {
         second = std::move(best);
-        best = {chi2, m, env};
-      } else if (chi2 < second.chi2) {
-        second = {chi2, m, env};
+        best = {chi2, mm, env};
+      } else if (chi2 < second.chi2 && mm != best.m) {
+        second = {chi2, mm, env};
+      }
+    };
+    if (exhaustive) {
+      const int combos = static_cast<int>(std::lround(std::pow(static_cast<double>(base), n - 1)));
+      for (int code = 0; code < combos; ++code) {
+        int c3 = code;
+        for (int k = 1; k < n; ++k) {
+          m[static_cast<std::size_t>(k)] = c3 % base - half;
+          c3 /= base;
+        }
+        consider(m);
+      }
+    } else {
+      double env = 0.0;
+      double cur = score(m, env);
+      for (int pass = 0; pass < 10; ++pass) {
+        bool moved = false;
+        for (int k = 1; k < n; ++k) {
+          const int keep = m[static_cast<std::size_t>(k)];
+          int best_v = keep;
+          for (int v = -half; v <= half; ++v) {
+            if (v == keep) continue;
+            m[static_cast<std::size_t>(k)] = v;
+            const double c = score(m, env);
+            if (c < cur - 1e-9) cur = c, best_v = v;
+          }
+          m[static_cast<std::size_t>(k)] = best_v;
+          moved = moved || best_v != keep;
+        }
+        if (!moved) break;
+      }
+      consider(m);
+      std::vector<int> alt = m;
+      for (int k = 1; k < n; ++k) {
+        for (int v = -half; v <= half; ++v) {
+          if (v == m[static_cast<std::size_t>(k)]) continue;
+          alt[static_cast<std::size_t>(k)] = v;
+          consider(alt);
+        }
+        alt[static_cast<std::size_t>(k)] = m[static_cast<std::size_t>(k)];
       }
     }
     doubtful.clear();
