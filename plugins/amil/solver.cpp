@@ -750,6 +750,19 @@ int resolve_cycles(const std::vector<Beep>& beeps, ListenerArrivals& arr, const 
         consider(m);
       }
     } else {
+      // Start from the rounded real-valued minimiser of the same quadratic form (m_0 = 0): a descent
+      // from no shift stalls in the integer lattice's local minima.
+      {
+        Eigen::MatrixXd Cc = Eigen::MatrixXd::Identity(n, n) - Eigen::MatrixXd::Constant(n, n, 1.0 / n);
+        Eigen::VectorXd offv(n);
+        for (int k = 0; k < n; ++k) offv[k] = off[static_cast<std::size_t>(k)];
+        const Eigen::MatrixXd H = (cP * cP) * M + Cc / env_var;
+        const Eigen::VectorXd gvec = cP * (M * r) + Cc * offv / env_var;
+        const Eigen::VectorXd u = H.bottomRightCorner(n - 1, n - 1).ldlt().solve(-gvec.tail(n - 1));
+        if (u.allFinite())
+          for (int k = 1; k < n; ++k)
+            m[static_cast<std::size_t>(k)] = std::clamp(static_cast<int>(std::lround(u[k - 1])), -half, half);
+      }
       double env = 0.0;
       double cur = score(m, env);
       for (int pass = 0; pass < 10; ++pass) {
