@@ -4,6 +4,8 @@
 1. pass:      hil.py amil --listeners 4 must exit 0 with every listener located and the mean direction
               error <= 3 deg (the demo's bars), an estimate on the live map (latency measured) and a
               plausible truth (5 emissions: the origin beep and one per corner of the triangle);
+              run once more (and said so) only when the bars were missed while the room itself
+              reported xruns (a machine too loaded to feed the nodes: chopped beeps);
 2. interrupt: Ctrl-C (SIGINT) to hil.py while its nodes run: exit 130;
 3. node dies: one listener's locusd SIGKILLed mid-run: hil.py fails (exit 1) naming it.
 After each: no jackd, mosquitto, `locus room` or locusd of that run is left (their command lines name
@@ -131,13 +133,27 @@ def main():
     os.makedirs(args.out, exist_ok=True)
     failures = []
 
-    # 1. a passing run
+    # 1. a passing run; one retry when its bars were missed while the room itself had xruns (a room
+    # cycle missed chops the beep at every listener: the machine's load, which no node can see)
     result_json = os.path.join(args.out, "pass.json")
-    if os.path.exists(result_json):
-        os.remove(result_json)
-    hil = Hil(args, "pass", ["--json", result_json])
-    status = hil.finish(240)
-    print(hil.text())
+    for attempt in (1, 2):
+        if os.path.exists(result_json):
+            os.remove(result_json)
+        hil = Hil(args, "pass", ["--json", result_json])
+        status = hil.finish(240)
+        print(hil.text())
+        if attempt == 2 or status != 0 or not os.path.exists(result_json):
+            break
+        with open(result_json) as f:
+            r = json.load(f)
+        room_xruns = re.search(r"(\d+) xruns", r.get("room") or "")
+        bars_met = r["located"] == r["expected"] == 4 and r["mean_direction_error_deg"] is not None and \
+            r["mean_direction_error_deg"] <= 3.0
+        if bars_met or not room_xruns or int(room_xruns.group(1)) == 0:
+            break
+        print(f"retry: bars missed (direction {r['mean_direction_error_deg']} deg) while the room had "
+              f"{room_xruns.group(1)} xruns; running once more")
+        check_clean(hil, "pass (first attempt)", failures)
     if status != 0:
         failures.append(f"pass: hil.py exited {status} (expected 0); logs in {hil.out}/logs")
     elif not os.path.exists(result_json):
