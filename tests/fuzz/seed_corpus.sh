@@ -38,6 +38,14 @@ case "$target" in
     "$bin/locus_fuzz_seeds" "$out" ;;
   model)
     cp "$root"/config/*-envaware.yaml "$root"/config/spyloc-los.yaml "$out"/ ;;
+  map_http)
+    # requests as a browser and a curious client send them to the live map (tools/map, docs/map.md)
+    printf 'GET / HTTP/1.1\r\nHost: 127.0.0.1:8080\r\nAccept: text/html\r\n\r\n' > "$out/index"
+    printf 'GET /api/state HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n' > "$out/state"
+    printf 'GET /events HTTP/1.1\r\nHost: [::1]:8080\r\nAccept: text/event-stream\r\nLast-Event-ID: 42\r\n\r\n' > "$out/events"
+    printf 'GET /map.js HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\nGET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n' > "$out/pipelined"
+    printf 'POST /api/state HTTP/1.1\r\nHost: evil.example\r\nContent-Length: 5\r\n\r\nhello' > "$out/post-foreign-host"
+    printf 'GET /nope?x=%%zz HTTP/1.0\r\n\r\n' > "$out/notfound" ;;
   *)
     echo "seed_corpus.sh: unknown target '$target'" >&2; exit 2 ;;
 esac
