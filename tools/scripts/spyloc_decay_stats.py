@@ -29,18 +29,7 @@ def rows_of(scene_dir, det_path):
     device = next(d['id'] for d in scene['devices'] if d.get('audio'))
     beeps = csa.beeps_from_extra(scene_dir) or csa.beeps_from_geometry(scene_dir, scene, device)
     firsts = np.array([b['los_sample'] for b in beeps])
-    feats = []
-    with open(det_path) as f:
-        for ln, line in enumerate(f, 1):
-            line = line.strip()
-            if not line:
-                continue
-            try:
-                ev = json.loads(line)
-            except json.JSONDecodeError as e:
-                sys.exit(f'{det_path}:{ln}: not JSON ({e})')
-            if ev.get('type') == 'decay_features' and ev.get('device') == device:
-                feats.append(ev)
+    feats = csa.read_events(det_path, 'decay_features', device)
     best = {}
     for ev in feats:
         fr = float(ev['frame'])
