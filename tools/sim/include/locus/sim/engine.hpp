@@ -202,7 +202,7 @@ struct Room {
 };
 
 /// The direct path between a source and a receiving device is attenuated by attenuation_db during
-/// [t_begin, t_end) of true emission start time (reflections are kept: NLOS). Symmetric in a/b.
+/// [t_begin, t_end) of true emission start time (reflections are kept: NLOS, unless wall_m says which cross the obstacle). Symmetric in a/b.
 struct Obstruction {
   std::string a, b;
   double attenuation_db = 20.0;
