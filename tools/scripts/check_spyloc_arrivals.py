@@ -112,6 +112,23 @@ def beeps_from_geometry(scene_dir, scene, device):
     return out
 
 
+def read_events(path, event_type, device):
+    """The events of one type and device from a JSON-lines file (exits naming the bad line)."""
+    out = []
+    with open(path) as f:
+        for ln, line in enumerate(f, 1):
+            line = line.strip()
+            if not line:
+                continue
+            try:
+                ev = json.loads(line)
+            except json.JSONDecodeError as e:
+                sys.exit(f'{path}:{ln}: not JSON ({e})')
+            if ev.get('type') == event_type and ev.get('device') == device:
+                out.append(ev)
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('scene')
@@ -146,18 +163,7 @@ def main():
     beeps = beeps_from_extra(a.scene)
     if beeps is None:
         beeps = beeps_from_geometry(a.scene, scene, device)
-    dets = []
-    with open(a.detections) as f:
-        for ln, line in enumerate(f, 1):
-            line = line.strip()
-            if not line:
-                continue
-            try:
-                ev = json.loads(line)
-            except json.JSONDecodeError as e:
-                sys.exit(f'{a.detections}:{ln}: not JSON ({e})')
-            if ev.get('type') == 'audio_detection' and ev.get('device') == device:
-                dets.append(ev)
+    dets = read_events(a.detections, 'audio_detection', device)
     firsts = np.array([b['first'] for b in beeps])
     win = a.window_s * fs
     best = {}

@@ -475,14 +475,51 @@ class DeviceRenderer {
     return x;
   }
 
-  double obstruction_gain(const Emission& e) const {
+  // Gain of the obstructions on path `image` from speaker position spk (the real one) to mic position
+  // mic: the direct path (image 0) takes every obstruction of the pair; a reflected path only those
+  // with a wall_m segment that its route in the room crosses (obstructed_route).
+  double obstruction_gain(const Emission& e, std::size_t image, const Eigen::Vector3d& spk,
+                          const Eigen::Vector3d& mic) const {
     double g = 1.0;
     const double te0 = e.t_start_true_s();
     for (const auto& o : sim_.acoustics.obstructions) {
       const bool pair = (o.a == e.source_id && o.b == dev_.id) || (o.b == e.source_id && o.a == dev_.id);
-      if (pair && te0 >= o.t_begin_s && te0 < o.t_end_s) g *= std::pow(10.0, -o.attenuation_db / 20.0);
+      if (!pair || te0 < o.t_begin_s || te0 >= o.t_end_s) continue;
+      if (image != 0 && (!o.wall_m || !sim_.acoustics.room ||
+                         !obstructed_route(images_[image].apply(spk), mic, *o.wall_m, sim_.acoustics.room->size_m)))
+        continue;
+      g *= std::pow(10.0, -o.attenuation_db / 20.0);
     }
     return g;
+  }
+
+  // Whether the horizontal route of a reflected path crosses a wall segment: the straight line from
+  // the image source to the mic (the unfolded path) is sampled and folded back into the room
+  // [0, Lx] x [0, Ly] (a mirror per wall crossed); consecutive folded points form the route's pieces.
+  static bool obstructed_route(const Eigen::Vector3d& image_src, const Eigen::Vector3d& mic,
+                               const std::array<Eigen::Vector2d, 2>& wall, const Eigen::Vector3d& room) {
+    auto fold = [](double u, double L) {
+      double r = std::fmod(u, 2.0 * L);
+      if (r < 0.0) r += 2.0 * L;
+      return r > L ? 2.0 * L - r : r;
+    };
+    auto cross2 = [](const Eigen::Vector2d& u, const Eigen::Vector2d& v) { return u.x() * v.y() - u.y() * v.x(); };
+    auto crosses = [&](const Eigen::Vector2d& p, const Eigen::Vector2d& q) {
+      const Eigen::Vector2d &a = wall[0], &b = wall[1];
+      const double d1 = cross2(q - p, a - p), d2 = cross2(q - p, b - p);
+      const double d3 = cross2(b - a, p - a), d4 = cross2(b - a, q - a);
+      return ((d1 > 0) != (d2 > 0)) && ((d3 > 0) != (d4 > 0));
+    };
+    const Eigen::Vector2d s = image_src.head<2>(), m = mic.head<2>();
+    const int n = std::max(8, static_cast<int>(std::ceil((m - s).norm() / 0.05)));  // 5 cm pieces
+    Eigen::Vector2d prev(fold(s.x(), room.x()), fold(s.y(), room.y()));
+    for (int i = 1; i <= n; ++i) {
+      const Eigen::Vector2d u = s + (m - s) * (static_cast<double>(i) / n);
+      const Eigen::Vector2d cur(fold(u.x(), room.x()), fold(u.y(), room.y()));
+      if (crosses(prev, cur)) return true;
+      prev = cur;
+    }
+    return false;
   }
 
   void render_contribution(const Plan& plan, std::vector<std::vector<double>>& buf, WriteReport& report) {
@@ -502,7 +539,6 @@ class DeviceRenderer {
                              ? air_absorption_db_per_m(fc, sim_.acoustics.temperature_c, sim_.acoustics.humidity_pct) *
                                    std::log(10.0) / 20.0
                              : 0.0;
-    const double obstruct = obstruction_gain(e);
     const double obstruct_extra_m = obstruction_extra_m(e);
     const double rmin = sim_.acoustics.min_distance_m;
     const bool rx_static = dev_.trajectory->is_static();
@@ -538,9 +574,13 @@ class DeviceRenderer {
       ++report.paths;
       const Image& im = images_[w.image];
       const double self = e.source_id == dev_.id ? dev_.self_gain : 1.0;
-      const double g = base_gain * im.gain * (w.image == 0 ? obstruct * self : 1.0);
       auto& out = buf[w.mic];
       const Eigen::Vector3d mic_static = rx_static ? mic_world(w.mic, 0.0) : Eigen::Vector3d::Zero();
+      // obstructions: the geometry at the window's middle (a path is blocked or not for a whole beep)
+      const double t_mid = t_of_[static_cast<std::size_t>((w.k0 + w.k1) / 2 - static_cast<std::int64_t>(plan.base))];
+      const double obstruct = obstruction_gain(e, w.image, s.trajectory->pose(te0).to_world(s.speaker_body),
+                                               rx_static ? mic_static : mic_world(w.mic, t_mid));
+      const double g = base_gain * im.gain * obstruct * (w.image == 0 ? self : 1.0);
       const Eigen::Vector3d spk_static = src_static ? spk_world(s, im, 0.0) : Eigen::Vector3d::Zero();
       double delay = -1.0;  // warm start for moving sources
       for (std::int64_t k = w.k0; k <= w.k1; ++k) {

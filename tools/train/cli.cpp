@@ -16,6 +16,7 @@ Subcommand add_train_command(CLI::App& cli) {
   CLI::App* spy = sub->add_subcommand("spyloc", "SpyLoc LoS/NLoS classifier: naive Bayes, per-feature GMM on T5..T30 (docs/spyloc.md)");
   spy->add_option("scenes", spy_opts->scenes, "labelled scene directories (truth-extra.yaml beeps or truth_los.csv)")->required();
   spy->add_option("-o,--output", spy_opts->output, "model file to write (YAML)")->required();
+  spy->add_option("--test", spy_opts->test_scenes, "held-out labelled scenes: LoS/NLoS accuracy per class (repeatable)");
   spy->add_option("--components", spy_opts->components, "mixture components per feature and class (paper: 4)")
       ->capture_default_str()->check(CLI::Range(1, 16));
   spy->add_option("--detector-params", spy_opts->detector_params,

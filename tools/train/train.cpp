@@ -62,10 +62,9 @@ std::map<int, std::string> beacon_masks(const scene::Scene& sc) {
 }  // namespace
 
 int run_train_spyloc(const SpyLocTrainOptions& o) {
-  std::vector<DecayVector> los, nlos;
   std::size_t unlabelled = 0;
-  std::string note;
-  for (const std::string& dir : o.scenes) {
+  // Replays one scene through the detector and appends its labelled beeps' features; 0 or the exit status.
+  auto collect = [&](const std::string& dir, std::vector<DecayVector>& los, std::vector<DecayVector>& nlos) -> int {
     scene::Scene sc;
     try {
       sc = scene::load_scene(dir);
@@ -224,6 +223,12 @@ int run_train_spyloc(const SpyLocTrainOptions& o) {
     }
     std::cerr << "locus train spyloc: " << dir << ": " << beeps.size() << " beeps, " << n_los << " LoS, " << n_nlos
               << " NLoS\n";
+    return 0;
+  };
+  std::vector<DecayVector> los, nlos;
+  std::string note;
+  for (const std::string& dir : o.scenes) {
+    if (const int rc = collect(dir, los, nlos); rc != 0) return rc;
     note += (note.empty() ? "" : " ") + fs::path(dir).filename().string();
   }
   plugins::spyloc::LosClassifier c;
@@ -241,6 +246,23 @@ int run_train_spyloc(const SpyLocTrainOptions& o) {
   std::cerr << "locus train spyloc: " << los.size() << " LoS + " << nlos.size() << " NLoS beeps (" << unlabelled
             << " unlabelled left out); training accuracy " << (100.0 * ok / std::max<std::size_t>(1, los.size() + nlos.size()))
             << " %; wrote " << o.output << "\n";
+  // Held-out scenes: accuracy per class, per scene and pooled (docs/spyloc.md "LoS/NLoS").
+  std::size_t t_los = 0, t_los_ok = 0, t_nlos = 0, t_nlos_ok = 0;
+  for (const std::string& dir : o.test_scenes) {
+    std::vector<DecayVector> tl, tn;
+    if (const int rc = collect(dir, tl, tn); rc != 0) return rc;
+    std::size_t lo = 0, no = 0;
+    for (const auto& v : tl) lo += c.p_los(v) >= 0.5;
+    for (const auto& v : tn) no += c.p_los(v) < 0.5;
+    std::printf("test %s: LoS %zu/%zu NLoS %zu/%zu accuracy %.1f %%\n", dir.c_str(), lo, tl.size(), no, tn.size(),
+                100.0 * static_cast<double>(lo + no) / static_cast<double>(std::max<std::size_t>(1, tl.size() + tn.size())));
+    t_los += tl.size(), t_los_ok += lo, t_nlos += tn.size(), t_nlos_ok += no;
+  }
+  if (!o.test_scenes.empty())
+    std::printf("test pooled: LoS %zu/%zu (%.1f %%) NLoS %zu/%zu (%.1f %%) accuracy %.1f %%\n", t_los_ok, t_los,
+                100.0 * static_cast<double>(t_los_ok) / static_cast<double>(std::max<std::size_t>(1, t_los)), t_nlos_ok, t_nlos,
+                100.0 * static_cast<double>(t_nlos_ok) / static_cast<double>(std::max<std::size_t>(1, t_nlos)),
+                100.0 * static_cast<double>(t_los_ok + t_nlos_ok) / static_cast<double>(std::max<std::size_t>(1, t_los + t_nlos)));
   return 0;
 }
 

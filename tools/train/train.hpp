@@ -21,6 +21,7 @@ namespace locus::app {
 
 struct SpyLocTrainOptions {
   std::vector<std::string> scenes;
+  std::vector<std::string> test_scenes;  ///< held out: accuracy per class printed on stdout after training
   std::string output;
   int components = 4;
   std::string detector_params;  ///< extra multitone params, YAML flow mapping text ("" = none)

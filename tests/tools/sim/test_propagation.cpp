@@ -207,6 +207,45 @@ TEST(SimPropagation, ObstructionAttenuatesDirectPathOnly) {
   EXPECT_LT(late_diff, 1e-6);  // reflections (arriving after the direct chirp ended) untouched
 }
 
+// A partition (Obstruction::wall_m, x = 3 m from y = 2 to 4 m) between a source and a receiver: the
+// floor reflection, in the direct path's vertical plane, crosses it and loses the same 20 dB as the
+// direct path; the reflection off the y = 0 wall goes around it and is kept. One reflecting surface
+// at a time (the others' coefficients 0), so each render holds the direct path and that reflection.
+TEST(SimPropagation, PartitionBlocksTheReflectionsThatCrossIt) {
+  auto make = [&](std::size_t surface, int mode) {  // mode 0: clear, 1: direct obstructed, 2: with the wall
+    Simulation s = quiet_simulation(1.0);
+    s.acoustics.room = Room{};
+    s.acoustics.room->size_m = {6, 6, 3};
+    s.acoustics.room->max_order = 1;
+    s.acoustics.room->reflection.fill(0.0);
+    s.acoustics.room->reflection[surface] = 0.8;
+    s.devices.push_back(listener("R", {2, 3, 1}));
+    s.emitters.push_back(emitter("E", std::make_shared<StaticTrajectory>(Eigen::Vector3d(4, 3, 1)), test_chirp()));
+    s.emissions.push_back(Emission{"E", 0, 0.3, 0.0});
+    if (mode > 0) {
+      Obstruction o{"R", "E", 20.0};
+      if (mode == 2) o.wall_m = {{Eigen::Vector2d(3, 2), Eigen::Vector2d(3, 4)}};
+      s.acoustics.obstructions.push_back(o);
+    }
+    return SceneSimulator(s).render_audio("R", 0, static_cast<std::size_t>(0.6 * kFs))[0];
+  };
+  auto max_abs_diff = [](const std::vector<float>& a, const std::vector<float>& b, double scale_b) {
+    double m = 0.0, peak = 0.0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      m = std::max(m, std::abs(a[i] - scale_b * b[i]));
+      peak = std::max(peak, std::abs(static_cast<double>(a[i])));
+    }
+    return m / peak;
+  };
+  // floor (surface index 4: z = 0): blocked with the wall, so everything is 20 dB down
+  const auto floor_clear = make(4, 0), floor_direct = make(4, 1), floor_wall = make(4, 2);
+  EXPECT_LT(max_abs_diff(floor_wall, floor_clear, 0.1), 1e-4);
+  EXPECT_GT(max_abs_diff(floor_direct, floor_clear, 0.1), 0.1);  // without the wall the reflection stays
+  // the y = 0 wall (index 2): its reflection passes beside the partition, the same as without it
+  const auto side_direct = make(2, 1), side_wall = make(2, 2);
+  EXPECT_LT(max_abs_diff(side_wall, side_direct, 1.0), 1e-6);
+}
+
 // A device hears its own emission, near field and loud; its recording shows the speaker latency.
 TEST(SimPropagation, SelfRecordingRevealsLatency) {
   Simulation s = quiet_simulation(2.0);

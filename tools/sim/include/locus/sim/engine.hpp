@@ -202,7 +202,7 @@ struct Room {
 };
 
 /// The direct path between a source and a receiving device is attenuated by attenuation_db during
-/// [t_begin, t_end) of true emission start time (reflections are kept: NLOS). Symmetric in a/b.
+/// [t_begin, t_end) of true emission start time (reflections are kept: NLOS, unless wall_m says which cross the obstacle). Symmetric in a/b.
 struct Obstruction {
   std::string a, b;
   double attenuation_db = 20.0;
@@ -212,6 +212,14 @@ struct Obstruction {
   /// path bends over it); 0 = only attenuated. Last, so aggregate initialisers {a, b, dB, t0, t1} keep
   /// their meaning.
   double extra_path_m = 0.0;
+  /// The obstacle itself, when known: a partition from floor to ceiling along this horizontal segment
+  /// (room coordinates, metres). Then every reflected path (image source) whose route in the room
+  /// crosses it is attenuated by attenuation_db as well (a partition between a beacon and the walker
+  /// also blocks the floor and ceiling reflections, which travel in the direct path's vertical plane);
+  /// reflections that go around it (side walls) pass unchanged. Unset: reflections are never blocked.
+  /// The direct path is blocked whenever the obstruction applies (the family decided it), whatever
+  /// the segment.
+  std::optional<std::array<Eigen::Vector2d, 2>> wall_m = std::nullopt;
 };
 
 /// Acoustic background noise at each microphone, relative to the reference level: snr_db is the SNR
