@@ -231,6 +231,17 @@ int run_train_spyloc(const SpyLocTrainOptions& o) {
     if (const int rc = collect(dir, los, nlos); rc != 0) return rc;
     note += (note.empty() ? "" : " ") + fs::path(dir).filename().string();
   }
+  // Held-out scenes are read before anything is written: a bad one refuses the run, model untouched.
+  struct TestSet {
+    std::string dir;
+    std::vector<DecayVector> los, nlos;
+  };
+  std::vector<TestSet> tests;
+  for (const std::string& dir : o.test_scenes) {
+    TestSet t{dir, {}, {}};
+    if (const int rc = collect(dir, t.los, t.nlos); rc != 0) return rc;
+    tests.push_back(std::move(t));
+  }
   plugins::spyloc::LosClassifier c;
   try {
     c.train(los, nlos, o.components);
@@ -248,13 +259,13 @@ int run_train_spyloc(const SpyLocTrainOptions& o) {
             << " %; wrote " << o.output << "\n";
   // Held-out scenes: accuracy per class, per scene and pooled (docs/spyloc.md "LoS/NLoS").
   std::size_t t_los = 0, t_los_ok = 0, t_nlos = 0, t_nlos_ok = 0;
-  for (const std::string& dir : o.test_scenes) {
-    std::vector<DecayVector> tl, tn;
-    if (const int rc = collect(dir, tl, tn); rc != 0) return rc;
+  for (const TestSet& t : tests) {
+    const auto& tl = t.los;
+    const auto& tn = t.nlos;
     std::size_t lo = 0, no = 0;
     for (const auto& v : tl) lo += c.p_los(v) >= 0.5;
     for (const auto& v : tn) no += c.p_los(v) < 0.5;
-    std::printf("test %s: LoS %zu/%zu NLoS %zu/%zu accuracy %.1f %%\n", dir.c_str(), lo, tl.size(), no, tn.size(),
+    std::printf("test %s: LoS %zu/%zu NLoS %zu/%zu accuracy %.1f %%\n", t.dir.c_str(), lo, tl.size(), no, tn.size(),
                 100.0 * static_cast<double>(lo + no) / static_cast<double>(std::max<std::size_t>(1, tl.size() + tn.size())));
     t_los += tl.size(), t_los_ok += lo, t_nlos += tn.size(), t_nlos_ok += no;
   }
