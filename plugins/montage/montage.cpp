@@ -38,6 +38,7 @@ class MontageLocalizer final : public Localizer {
   void configure(const Params& params, HostContext& ctx) override {
     log_ = &ctx.log;
     link_ = &ctx.link;
+    clock_ = &ctx.clock;
     instance_ = std::string(ctx.instance);
     device_ = std::string(ctx.device);
     if (device_.empty()) throw std::runtime_error("montage: runs on a device (a node's device or a replay device), not node-wide");
@@ -51,6 +52,7 @@ class MontageLocalizer final : public Localizer {
     before_s_ = gate[0];
     after_s_ = gate[1];
     wait_s_ = params.get_float("solve_wait_s");
+    silent_after_s_ = params.get_float("silent_after_s");
     std_scale_ = params.get_float("std_scale");
     std_floor_ = params.get_float("std_floor_m");
     publish_steps_ = params.get_bool("publish_steps");
@@ -103,6 +105,7 @@ class MontageLocalizer final : public Localizer {
       formation_ = std::make_unique<Formation>(users_, fc);
       book_ = RoundBook(params.get_float("round_match_s"));
       progress_.assign(users_.size(), -1e300);
+      heard_wall_s_.assign(users_.size(), clock_->now_s());
       subs_.push_back(link_->subscribe(prefix_ + "/round/+", [this](const LinkMessage& m) { on_round(m); }));
       subs_.push_back(link_->subscribe(prefix_ + "/step/+", [this](const LinkMessage& m) { on_step(m); }));
       subs_.push_back(link_->subscribe(prefix_ + "/progress/+", [this](const LinkMessage& m) { on_progress(m); }));
@@ -309,6 +312,7 @@ class MontageLocalizer final : public Localizer {
     }
     book_.add(*m);
     progress_[*u] = std::max(progress_[*u], m->tau_own_s);
+    heard_wall_s_[*u] = clock_->now_s();
   }
   void on_step(const LinkMessage& lm) {
     std::string why;
@@ -320,6 +324,7 @@ class MontageLocalizer final : public Localizer {
                          m->offset_valid ? std::optional<double>(m->offset_rad) : std::nullopt);
     steps_[*u].push_back(*m);
     progress_[*u] = std::max(progress_[*u], m->tau_s);
+    heard_wall_s_[*u] = clock_->now_s();
   }
   void on_progress(const LinkMessage& lm) {
     std::string why;
@@ -328,20 +333,23 @@ class MontageLocalizer final : public Localizer {
     const auto u = sender(lm, m->device);
     if (!u) return;
     progress_[*u] = std::max(progress_[*u], m->tau_s);
+    heard_wall_s_[*u] = clock_->now_s();
   }
 
   /// Solves every round that every user has passed by solve_wait_s (all at the end).
   void process(Publisher& out, bool all) {
-    double min_progress = 1e300, max_progress = -1e300;
-    for (double p : progress_) {
-      if (p > -1e299) min_progress = std::min(min_progress, p);
-      max_progress = std::max(max_progress, p);
-    }
+    // Every user that is still talking holds the rounds back until it has passed them, also one not
+    // heard from yet (its reports may be on their way: boards and replay nodes start at different
+    // moments) or far behind in scene time (replayed nodes run at different speeds). Only a user
+    // silent for silent_after_s of host time stops holding them: a node that died or left.
+    const double wall = clock_->now_s();
+    double min_progress = 1e300;
+    for (std::size_t u = 0; u < progress_.size(); ++u)
+      if (wall - heard_wall_s_[u] <= silent_after_s_) min_progress = std::min(min_progress, progress_[u]);
     const auto& rounds = book_.rounds();
     while (next_round_ < rounds.size()) {
       const Round& r = rounds[next_round_];
-      // A silent user holds no round back for ever: 10 s after the others.
-      const bool ready = all || (r.tau_s + wait_s_ <= min_progress) || (r.tau_s + wait_s_ + 10.0 <= max_progress);
+      const bool ready = all || r.tau_s + wait_s_ <= min_progress;
       if (!ready) break;
       std::vector<RangeObs> ranges = round_ranges(r, users_, c_, max_range_);
       ranges_ += ranges.size();
@@ -412,6 +420,9 @@ class MontageLocalizer final : public Localizer {
   std::unique_ptr<Formation> formation_;
   RoundBook book_;
   std::vector<double> progress_;
+  std::vector<double> heard_wall_s_;  ///< host time of each user's last message (reporter)
+  const Clock* clock_ = nullptr;
+  double silent_after_s_ = 5.0;
   std::map<std::size_t, std::deque<StepMessage>> steps_;
   std::size_t next_round_ = 0;
   double processed_tau_ = -1e300;
@@ -441,6 +452,8 @@ const ParamSchema& schema() {
       float_param("round_match_s", 0.3, 0.01, 10.0, "s",
                   "Reports of two devices are the same round when their times since the start signal differ by less."),
       float_param("max_range_m", 40.0, 1.0, 500.0, "m", "Longest ETOA range accepted."),
+      float_param("silent_after_s", 5.0, 0.1, 600.0, "s",
+                  "Reporter: a user silent this long (host time) stops holding rounds back (a node that died or left)."),
       float_param("solve_wait_s", 2.0, 0.0, 60.0, "s",
                   "The reporter solves a round once every user's messages have passed it by this much (steps lag)."),
       float_param("range_std_m", 0.15, 0.001, 10.0, "m", "1-sigma of an ETOA range in the formation adjustment."),
