@@ -311,8 +311,7 @@ class MontageLocalizer final : public Localizer {
       return;
     }
     book_.add(*m);
-    progress_[*u] = std::max(progress_[*u], m->tau_own_s);
-    heard_wall_s_[*u] = clock_->now_s();
+    heard(*u, m->tau_own_s);
   }
   void on_step(const LinkMessage& lm) {
     std::string why;
@@ -323,8 +322,7 @@ class MontageLocalizer final : public Localizer {
     formation_->add_step(*u, m->tau_s, m->stride_m, m->heading_rad,
                          m->offset_valid ? std::optional<double>(m->offset_rad) : std::nullopt);
     steps_[*u].push_back(*m);
-    progress_[*u] = std::max(progress_[*u], m->tau_s);
-    heard_wall_s_[*u] = clock_->now_s();
+    heard(*u, m->tau_s);
   }
   void on_progress(const LinkMessage& lm) {
     std::string why;
@@ -332,8 +330,12 @@ class MontageLocalizer final : public Localizer {
     if (!m) return bad(lm, why);
     const auto u = sender(lm, m->device);
     if (!u) return;
-    progress_[*u] = std::max(progress_[*u], m->tau_s);
-    heard_wall_s_[*u] = clock_->now_s();
+    heard(*u, m->tau_s);
+  }
+  /// User u has passed scene time tau_s (since its start signal), heard now (host time).
+  void heard(std::size_t u, double tau_s) {
+    progress_[u] = std::max(progress_[u], tau_s);
+    heard_wall_s_[u] = clock_->now_s();
   }
 
   /// Solves every round that every user has passed by solve_wait_s (all at the end).
