@@ -21,7 +21,7 @@ using detail::trim;
 CsvReader::CsvReader(const std::string& path) : path_(path) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw_file(path, "no such file (expected a CSV file)");
-  file_ = std::fopen(path.c_str(), "rb");
+  file_.reset(std::fopen(path.c_str(), "rb"));
   if (!file_) throw_file(path, std::string("cannot open: ") + std::strerror(errno));
   buf_.resize(64 * 1024);
   // UTF-8 byte order mark
@@ -34,8 +34,7 @@ CsvReader::CsvReader(const std::string& path) : path_(path) {
   }
   if (!read_record(true)) {
     SceneIssue is{path_, 1, 1, -1, "empty file (expected a header row)"};
-    if (file_) std::fclose(file_);
-    file_ = nullptr;
+    file_.reset();
     throw SceneError({is});
   }
   header_.assign(fields_.begin(), fields_.end());
@@ -46,8 +45,7 @@ CsvReader::CsvReader(const std::string& path) : path_(path) {
     h = b == std::string::npos ? std::string() : h.substr(b, e - b + 1);
     auto fail_header = [&](const std::string& msg) {
       SceneIssue is{path_, where_[i].first, where_[i].second, -1, msg};
-      std::fclose(file_);
-      file_ = nullptr;
+      file_.reset();
       throw SceneError({is});
     };
     if (h.empty()) fail_header("empty column name in the header (column " + std::to_string(i + 1) + ")");
@@ -56,17 +54,15 @@ CsvReader::CsvReader(const std::string& path) : path_(path) {
   }
 }
 
-CsvReader::~CsvReader() {
-  if (file_) std::fclose(file_);
-}
+CsvReader::~CsvReader() = default;
 
 bool CsvReader::fill() {
   if (pos_ < len_) return true;
   if (eof_ || !file_) return false;
-  len_ = std::fread(buf_.data(), 1, buf_.size(), file_);
+  len_ = std::fread(buf_.data(), 1, buf_.size(), file_.get());
   pos_ = 0;
   if (len_ == 0) {
-    if (std::ferror(file_)) throw_file(path_, "read error at line " + std::to_string(cur_line_));
+    if (std::ferror(file_.get())) throw_file(path_, "read error at line " + std::to_string(cur_line_));
     eof_ = true;
     return false;
   }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <random>
 
 #include "locus/scene/streams.hpp"
@@ -31,6 +32,27 @@ TEST(SceneCsv, Rfc4180QuotingCrlfBomAndTrailingBlankLines) {
   EXPECT_TRUE(csv.blank(2));
   EXPECT_FALSE(csv.next_row());
   EXPECT_FALSE(csv.next_row());
+}
+
+namespace {
+std::size_t open_fds() {
+  std::size_t n = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator("/proc/self/fd")) ++n;
+  return n;
+}
+}  // namespace
+
+// Found by profiling the imu_csv fuzz target: an unterminated quote in the header row threw out of the
+// constructor past an unowned FILE*, so every such file left a descriptor (and its 4 KiB buffer) open.
+TEST(SceneCsv, AMalformedHeaderClosesTheFile) {
+  TempDir tmp;
+  const std::string p = tmp / "h.csv";
+  write_file(p, "t,ax,\"gy0,1\n0,0\n");
+  const std::size_t before = open_fds();
+  for (int i = 0; i < 50; ++i) EXPECT_THROW(CsvReader{p}, SceneError);
+  write_file(p, "t,t\n0,0\n");
+  for (int i = 0; i < 50; ++i) EXPECT_THROW(CsvReader{p}, SceneError);
+  EXPECT_EQ(open_fds(), before);
 }
 
 TEST(SceneCsv, NumbersAreStrict) {

@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdio>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -67,8 +68,12 @@ class CsvReader {
   int peek();
   bool read_record(bool header);  // parses one record into fields_; false at EOF
 
+  struct FileCloser {
+    void operator()(std::FILE* f) const noexcept { std::fclose(f); }
+  };
   std::string path_;
-  std::FILE* file_ = nullptr;
+  // Owned, so that every exception out of the constructor (a malformed header row) closes it too.
+  std::unique_ptr<std::FILE, FileCloser> file_;
   std::vector<char> buf_;
   std::size_t pos_ = 0, len_ = 0;
   bool eof_ = false;
