@@ -9,10 +9,12 @@
 #include "amil/messages.hpp"
 #include "auth/message_auth.hpp"
 #include "locble/messages.hpp"
+#include "montage/messages.hpp"
 #include "tum/messages.hpp"
 
 namespace amil = locus::plugins::amil;
 namespace tum = locus::plugins::tum;
+namespace montage = locus::plugins::montage;
 
 int main(int argc, char** argv) {
   if (argc != 2) {
@@ -53,6 +55,22 @@ int main(int argc, char** argv) {
   tm.east_m = 1.25;
   tm.north_m = -0.5;
   seed('\3', "locble/motion/T1", locus::plugins::locble::encode(tm));
+  montage::RoundMessage r;
+  r.device = "W1";
+  r.tau_own_s = 0.5;
+  r.self_m = 0.12;
+  r.arrivals = {{"W2", 0.0123}, {"W3", -0.0045}};
+  seed('\4', montage::topic_round("montage", "W1"), montage::encode(r));
+  montage::StepMessage st;
+  st.device = "W1";
+  st.tau_s = 1.25;
+  st.t_s = 11.25;
+  st.stride_m = 0.7;
+  st.heading_rad = 1.5;
+  st.offset_rad = -0.1;
+  st.offset_valid = true;
+  seed('\5', montage::topic_step("montage", "W1"), montage::encode(st));
+  seed('\6', montage::topic_progress("montage", "W1"), montage::encode(montage::ProgressMessage{"W1", 2.0}));
   locus::linkauth::MessageAuthenticator auth("fuzz-site-key-0123456789abcdef", "L01", 30.0);
   seed('\2', "amil/arrivals/L01", auth.sign("amil/arrivals/L01", amil::encode(a), 1.8e9));
   seed('\2', "amil/arrivals/L01", amil::encode(a));
