@@ -3,7 +3,8 @@
 
 For `amil`: simulates the layout (`locus simulate amil`: the player's triangle gesture and 12 listeners;
 the live protocol: the player pauses 0.8-1.0 s at each corner, long enough for its beep), then starts
-  - jackd (dummy driver, its own server name, synchronous, one period of --period frames),
+  - jackd (dummy driver, its own server name, synchronous, one period of --period frames, real-time
+    process threads unless --realtime 0: other work on the machine must not make the room miss a cycle),
   - mosquitto (its own loopback port),
   - `locus room` (the layout's acoustics between the nodes' speakers and microphones, a fake IIO IMU
     per device fed from the trajectories, the truth),
@@ -201,7 +202,8 @@ def hil_amil(args, bin_dir, out, run):
     server = f"locus_hil_{os.getpid()}"
     print(f"== 2/5 jackd -n {server} -d dummy -p {args.period}; mosquitto; locus room", flush=True)
     env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1", JACK_DEFAULT_SERVER=server)
-    jackd = run.start("jackd", ["jackd", "-n", server, "-r", "-S", "-d", "dummy", "-r", "44100", "-p", str(args.period)], env=env)
+    rt = ["-R", "-P", "70"] if args.realtime else ["-r"]
+    jackd = run.start("jackd", ["jackd", "-n", server, *rt, "-S", "-d", "dummy", "-r", "44100", "-p", str(args.period)], env=env)
     wait_for(lambda: subprocess.run(["jack_lsp", "-s", server], capture_output=True, env=env).returncode == 0, 20,
              "jackd to answer", [("jackd", jackd)])
     mqtt_port = free_port()
@@ -391,6 +393,9 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--difficulty", default="normal", choices=["easy", "normal", "hard"])
     ap.add_argument("--gestures", type=int, default=1, choices=[1, 3])
+    ap.add_argument("--realtime", type=int, default=1, choices=[0, 1],
+                    help="1 (default, as on a board): jackd -R -P 70, so jackd's, the room's and every node's process "
+                         "threads run SCHED_FIFO when the user may (else jackd says so and runs without); 0: jackd -r")
     ap.add_argument("--period", type=int, default=1024, help="JACK period (frames)")
     ap.add_argument("--reflections", type=int, default=0, choices=[0, 1], help="the room's image-source order")
     ap.add_argument("--self-gain", type=float, default=0.2,
