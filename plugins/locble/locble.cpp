@@ -170,6 +170,7 @@ class LocBleLocalizer final : public Localizer {
     std::string last_why;
     int env_class = -1;         ///< EnvAware class of the latest window (-1 = none / off)
     std::uint64_t restarts = 0; ///< updates that used only the readings since an environment change
+    bool one_leg = false;       ///< the latest estimate used readings of one leg only
   };
 
   void on_advert(const BleAdvertisement& a) {
@@ -268,11 +269,18 @@ class LocBleLocalizer final : public Localizer {
         if (x.size() >= 4) cls.emplace_back(t0, envaware_->predict(envaware_features(x)));
         i = j;
       }
+      // A single window whose class differs from two agreeing neighbours is a flicker of the
+      // classifier (or a bystander crossing for a second), not an environment change: locble-105's T1
+      // read LOS, pLOS, LOS over its final stand-still, and that flicker hid its real pLOS → LOS change
+      // at the turn, so its mirror-prone fit mixed a 9 dB-weaker leg with the LOS one.
+      for (std::size_t k = 1; k + 1 < cls.size(); ++k)
+        if (cls[k - 1].second == cls[k + 1].second && cls[k].second != cls[k - 1].second) cls[k].second = cls[k - 1].second;
       t.env_class = cls.empty() ? -1 : cls.back().second;
       if (getenv("LOCBLE_DBG")) { std::string s; for (auto& c : cls) s += std::to_string(c.first) + ":" + std::to_string(c.second) + " "; fprintf(stderr, "cls %s\n", s.c_str()); }
+      // The latest change whose new class held for two windows or more (a newer one-window class is
+      // not a change yet, and does not hide an older change).
       for (std::size_t k = cls.size(); k-- > 1;) {
-        if (cls[k].second == cls[k - 1].second) continue;
-        if (k + 2 > cls.size()) break;  // the newest class holds for one window only: not yet a change
+        if (cls[k].second == cls[k - 1].second || k + 2 > cls.size() || cls[k + 1].second != cls[k].second) continue;
         Tag sub = t;
         sub.readings.erase(std::remove_if(sub.readings.begin(), sub.readings.end(),
                                           [&](const Reading& r) { return r.t_s < cls[k].first; }),
@@ -288,6 +296,9 @@ class LocBleLocalizer final : public Localizer {
       }
     }
     const std::optional<std::size_t> turn = dr_.turn_step(turn_rad_);
+    // Readings from one leg only (no turn yet, or an EnvAware restart after it): a straight walk
+    // leaves the mirror about that leg open, and a far tag's position along it too: flagged weak.
+    t.one_leg = !turn || bins.front().t_s >= dr_.step_begin_s(*turn) || bins.back().t_s < dr_.step_begin_s(*turn);
     Vec2 leg_axis{0.0, 0.0};
     if (dr_.steps() > 0) leg_axis = Vec2{-std::sin(dr_.step_heading_rad(0)), std::cos(dr_.step_heading_rad(0))};
     posterior_->set_gamma_mean((t.has_tx ? t.tx_power_dbm : default_tx_power_dbm_) + gamma_offset_db_);
@@ -358,7 +369,10 @@ class LocBleLocalizer final : public Localizer {
       est.direction_std_rad = est.distance_m > 0.0 ? std::min(std::numbers::pi, est.distance_std_m / est.distance_m) : kNaN;
       est.confidence = static_cast<float>(std::clamp(e.confidence, 0.0, 1.0));
       if (e.mirror_mass > ambiguous_mass_) est.flags |= kEstimateAmbiguous;
-      if (!dr_.turn_step(turn_rad_) || e.bins < 4) est.flags |= kEstimateWeak;
+      if (t.one_leg || e.bins < 4) est.flags |= kEstimateWeak;
+      if (getenv("LOCBLE_DBG"))
+        fprintf(stderr, "est %s t %.3f x %.3f y %.3f std %.3f cstd %.3f nr %.3f mm %.3f bins %d oneleg %d conf %.4f\n", key.c_str(), now, where.x(), where.y(), e.std_m,
+                e.coarse_std_m, e.noise_ratio, e.mirror_mass, e.bins, t.one_leg ? 1 : 0, e.confidence);
       out.publish(est);
     }
   }
