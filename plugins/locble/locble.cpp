@@ -276,7 +276,6 @@ class LocBleLocalizer final : public Localizer {
       for (std::size_t k = 1; k + 1 < cls.size(); ++k)
         if (cls[k - 1].second == cls[k + 1].second && cls[k].second != cls[k - 1].second) cls[k].second = cls[k - 1].second;
       t.env_class = cls.empty() ? -1 : cls.back().second;
-      if (getenv("LOCBLE_DBG")) { std::string s; for (auto& c : cls) s += std::to_string(c.first) + ":" + std::to_string(c.second) + " "; fprintf(stderr, "cls %s\n", s.c_str()); }
       // The latest change whose new class held for two windows or more (a newer one-window class is
       // not a change yet, and does not hide an older change).
       for (std::size_t k = cls.size(); k-- > 1;) {
@@ -370,9 +369,6 @@ class LocBleLocalizer final : public Localizer {
       est.confidence = static_cast<float>(std::clamp(e.confidence, 0.0, 1.0));
       if (e.mirror_mass > ambiguous_mass_) est.flags |= kEstimateAmbiguous;
       if (t.one_leg || e.bins < 4) est.flags |= kEstimateWeak;
-      if (getenv("LOCBLE_DBG"))
-        fprintf(stderr, "est %s t %.3f x %.3f y %.3f std %.3f cstd %.3f nr %.3f mm %.3f bins %d oneleg %d conf %.4f\n", key.c_str(), now, where.x(), where.y(), e.std_m,
-                e.coarse_std_m, e.noise_ratio, e.mirror_mass, e.bins, t.one_leg ? 1 : 0, e.confidence);
       out.publish(est);
     }
   }
@@ -432,10 +428,6 @@ class LocBleLocalizer final : public Localizer {
       for (std::size_t b = a + 1; b < ts.size(); ++b)
         if (member[a][b] && !(colocation_bayes_factor(ts[a]->est->grid, ts[b]->est->grid) >= cluster_min_bf_))
           member[a][b] = member[b][a] = false;
-    if (getenv("LOCBLE_DBG"))
-      for (std::size_t a = 0; a < ts.size(); ++a)
-        for (std::size_t b = a + 1; b < ts.size(); ++b)
-          if (member[a][b]) fprintf(stderr, "member %s %s\n", format_address(ts[a]->address).c_str(), format_address(ts[b]->address).c_str());
     for (std::size_t k = 0; k < ts.size(); ++k) {
       std::vector<Vec2> pos{ts[k]->est->position_m};
       std::vector<double> w{std::max(ts[k]->est->confidence, 1e-9)};

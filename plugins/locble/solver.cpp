@@ -415,7 +415,6 @@ TagEstimate PositionPosterior::solve_coarse_to_fine(std::span<const Bin> bins, c
   if (!fine.ok) return coarse;
   fine.mirror_mass = coarse.mirror_mass;
   fine.grid = coarse.grid;
-  fine.coarse_std_m = coarse.std_m;
   return fine;
 }
 

@@ -142,7 +142,6 @@ struct TagEstimate {
   /// the readings are cleaner than shadowing_sd_db / fading_sd_db assume.
   double noise_ratio = 1.0;
   int bins = 0;
-  double coarse_std_m = 0.0;      ///< std of the first (configured-noise, whole-square) solve
   PosteriorGrid grid;             ///< the whole-square posterior (first solve of solve_coarse_to_fine())
 };
 
