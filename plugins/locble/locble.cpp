@@ -455,7 +455,7 @@ class LocBleLocalizer final : public Localizer {
   ClusterOptions copt_;
   dsp::RssAnfOptions anf_;
   bool cluster_ = false;
-  double cluster_min_speed_mps_ = 0.2, cluster_min_bf_ = 1.0;
+  double cluster_min_speed_mps_ = 0.2, cluster_min_bf_ = 3.0;
   std::optional<PositionPosterior> posterior_;
   std::optional<EnvAwareModel> envaware_;
   double min_noise_ratio_ = 0.1;
@@ -503,7 +503,7 @@ const ParamSchema& schema() {
       int_param("cluster_segment", std::int64_t{10}, 2, 1000, "", "DTW segment length in grid points (paper: 10)."),
       int_param("cluster_window", std::int64_t{2}, 0, 1000, "", "DTW warping band in grid points."),
       float_param("cluster_threshold", 6.1, 0.0, 1e6, "dB^2", "LB_Keogh and DTW threshold per segment (paper: 6.1)."),
-      float_param("cluster_min_bayes_factor", 1.0, 0.0, 1e9, "",
+      float_param("cluster_min_bayes_factor", 3.0, 0.0, 1e9, "",
                   "DTW-matched tags fuse only when their position posteriors favour one place by this Bayes factor (0 = DTW alone, the paper)."),
       float_param("cluster_min_speed_mps", 0.2, 0.0, 10.0, "m/s",
                   "DTW compares only trace points where the observer walked at least this fast (over 1 s); 0 = every point."),
