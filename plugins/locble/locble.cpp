@@ -85,6 +85,8 @@ class LocBleLocalizer final : public Localizer {
     copt_.segment = static_cast<std::size_t>(p.get_int("cluster_segment"));
     copt_.window = static_cast<std::size_t>(p.get_int("cluster_window"));
     copt_.threshold = p.get_float("cluster_threshold");
+    cluster_min_speed_mps_ = p.get_float("cluster_min_speed_mps");
+    cluster_min_bf_ = p.get_float("cluster_min_bayes_factor");
     cluster_grid_dt_ = 1.0 / p.get_float("cluster_rate_hz");
     anf_.grid_rate_hz = p.get_float("cluster_rate_hz");
     anf_.lowpass_hz = p.get_float("anf_lowpass_hz");
@@ -168,6 +170,7 @@ class LocBleLocalizer final : public Localizer {
     std::string last_why;
     int env_class = -1;         ///< EnvAware class of the latest window (-1 = none / off)
     std::uint64_t restarts = 0; ///< updates that used only the readings since an environment change
+    bool one_leg = false;       ///< the latest estimate used readings of one leg only
   };
 
   void on_advert(const BleAdvertisement& a) {
@@ -266,10 +269,17 @@ class LocBleLocalizer final : public Localizer {
         if (x.size() >= 4) cls.emplace_back(t0, envaware_->predict(envaware_features(x)));
         i = j;
       }
+      // A single window whose class differs from two agreeing neighbours is a flicker of the
+      // classifier (or a bystander crossing for a second), not an environment change: locble-105's T1
+      // read LOS, pLOS, LOS over its final stand-still, and that flicker hid its real pLOS → LOS change
+      // at the turn, so its mirror-prone fit mixed a 9 dB-weaker leg with the LOS one.
+      for (std::size_t k = 1; k + 1 < cls.size(); ++k)
+        if (cls[k - 1].second == cls[k + 1].second && cls[k].second != cls[k - 1].second) cls[k].second = cls[k - 1].second;
       t.env_class = cls.empty() ? -1 : cls.back().second;
+      // The latest change whose new class held for two windows or more (a newer one-window class is
+      // not a change yet, and does not hide an older change).
       for (std::size_t k = cls.size(); k-- > 1;) {
-        if (cls[k].second == cls[k - 1].second) continue;
-        if (k + 2 > cls.size()) break;  // the newest class holds for one window only: not yet a change
+        if (cls[k].second == cls[k - 1].second || k + 2 > cls.size() || cls[k + 1].second != cls[k].second) continue;
         Tag sub = t;
         sub.readings.erase(std::remove_if(sub.readings.begin(), sub.readings.end(),
                                           [&](const Reading& r) { return r.t_s < cls[k].first; }),
@@ -285,6 +295,9 @@ class LocBleLocalizer final : public Localizer {
       }
     }
     const std::optional<std::size_t> turn = dr_.turn_step(turn_rad_);
+    // Readings from one leg only (no turn yet, or an EnvAware restart after it): a straight walk
+    // leaves the mirror about that leg open, and a far tag's position along it too: flagged weak.
+    t.one_leg = !turn || bins.front().t_s >= dr_.step_begin_s(*turn) || bins.back().t_s < dr_.step_begin_s(*turn);
     Vec2 leg_axis{0.0, 0.0};
     if (dr_.steps() > 0) leg_axis = Vec2{-std::sin(dr_.step_heading_rad(0)), std::cos(dr_.step_heading_rad(0))};
     posterior_->set_gamma_mean((t.has_tx ? t.tx_power_dbm : default_tx_power_dbm_) + gamma_offset_db_);
@@ -355,7 +368,7 @@ class LocBleLocalizer final : public Localizer {
       est.direction_std_rad = est.distance_m > 0.0 ? std::min(std::numbers::pi, est.distance_std_m / est.distance_m) : kNaN;
       est.confidence = static_cast<float>(std::clamp(e.confidence, 0.0, 1.0));
       if (e.mirror_mass > ambiguous_mass_) est.flags |= kEstimateAmbiguous;
-      if (!dr_.turn_step(turn_rad_) || e.bins < 4) est.flags |= kEstimateWeak;
+      if (t.one_leg || e.bins < 4) est.flags |= kEstimateWeak;
       out.publish(est);
     }
   }
@@ -378,6 +391,15 @@ class LocBleLocalizer final : public Localizer {
     // filter of the ble_rss detector), then on a common grid by linear interpolation between packets
     // (NaN outside a tag's span and across gaps longer than 1 s).
     std::vector<std::vector<float>> traces(ts.size(), std::vector<float>(n, std::numeric_limits<float>::quiet_NaN()));
+    // Only what was heard while the observer walked is compared: standing still (before the walk,
+    // after it, at the turn) every tag's trace is flat, so those segments match for any two tags and
+    // outvote the walk (locble-105: 4 s before and 7 s after a 6 s walk fused tags 9 m apart). The
+    // paper's premise is the walk: "such a pattern becomes unique in geometry" (Sec. 6.1).
+    std::vector<char> walking(n, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double t = t0 + static_cast<double>(i) * cluster_grid_dt_;
+      walking[i] = dr_.path_length_at(t + 0.5) - dr_.path_length_at(t - 0.5) >= cluster_min_speed_mps_;
+    }
     for (std::size_t k = 0; k < ts.size(); ++k) {
       dsp::RssAnf anf(anf_);
       std::vector<double> ft, fv;
@@ -390,13 +412,22 @@ class LocBleLocalizer final : public Localizer {
       for (std::size_t i = 0; i < n; ++i) {
         const double t = t0 + static_cast<double>(i) * cluster_grid_dt_;
         while (j + 1 < ft.size() && ft[j + 1] < t) ++j;
-        if (j + 1 >= ft.size() || t < ft[j] || ft[j + 1] - ft[j] > 1.0) continue;
+        if (!walking[i] || j + 1 >= ft.size() || t < ft[j] || ft[j + 1] - ft[j] > 1.0) continue;
         const double f = (t - ft[j]) / std::max(ft[j + 1] - ft[j], 1e-9);
         traces[k][i] = static_cast<float>(fv[j] + f * (fv[j + 1] - fv[j]));
       }
     }
     std::vector<Vec2> fused(ts.size());
-    const auto member = cluster_matrix(traces, copt_);
+    auto member = cluster_matrix(traces, copt_);
+    // Traces that move together are not enough: in a world of per-link shadowing and per-link
+    // environment changes, the DTW costs of tags metres apart have the same distribution as those of
+    // tags 0.3-1 m apart (docs/locble.md, "Clustering"), so on their own they fuse distinct tags
+    // (locble-105: T2, 9 m from T1, dragged onto it). A pair is one cluster only when their position
+    // posteriors also favour one place: Bayes factor of co-location >= cluster_min_bayes_factor.
+    for (std::size_t a = 0; a < ts.size(); ++a)
+      for (std::size_t b = a + 1; b < ts.size(); ++b)
+        if (member[a][b] && !(colocation_bayes_factor(ts[a]->est->grid, ts[b]->est->grid) >= cluster_min_bf_))
+          member[a][b] = member[b][a] = false;
     for (std::size_t k = 0; k < ts.size(); ++k) {
       std::vector<Vec2> pos{ts[k]->est->position_m};
       std::vector<double> w{std::max(ts[k]->est->confidence, 1e-9)};
@@ -424,6 +455,7 @@ class LocBleLocalizer final : public Localizer {
   ClusterOptions copt_;
   dsp::RssAnfOptions anf_;
   bool cluster_ = false;
+  double cluster_min_speed_mps_ = 0.2, cluster_min_bf_ = 3.0;
   std::optional<PositionPosterior> posterior_;
   std::optional<EnvAwareModel> envaware_;
   double min_noise_ratio_ = 0.1;
@@ -471,6 +503,10 @@ const ParamSchema& schema() {
       int_param("cluster_segment", std::int64_t{10}, 2, 1000, "", "DTW segment length in grid points (paper: 10)."),
       int_param("cluster_window", std::int64_t{2}, 0, 1000, "", "DTW warping band in grid points."),
       float_param("cluster_threshold", 6.1, 0.0, 1e6, "dB^2", "LB_Keogh and DTW threshold per segment (paper: 6.1)."),
+      float_param("cluster_min_bayes_factor", 3.0, 0.0, 1e9, "",
+                  "DTW-matched tags fuse only when their position posteriors favour one place by this Bayes factor (0 = DTW alone, the paper)."),
+      float_param("cluster_min_speed_mps", 0.2, 0.0, 10.0, "m/s",
+                  "DTW compares only trace points where the observer walked at least this fast (over 1 s); 0 = every point."),
       float_param("cluster_rate_hz", 10.0, 0.5, 100.0, "Hz", "Grid the RSS traces are filtered and compared on (DTW)."),
       float_param("anf_lowpass_hz", 0.5, 0.01, 50.0, "Hz", "Butterworth cutoff of the ANF the traces go through (ble_rss default)."),
       string_param("envaware_model", "",

@@ -333,6 +333,17 @@ TagEstimate PositionPosterior::solve(std::span<const Bin> bins, const Vec2& leg_
       }
     est.mirror_mass = total > 0.0 ? other / total : 0.0;
   }
+  // The whole-square posterior, for the clustering's co-location test.
+  if (wider == nullptr) {
+    const int n = 2 * half + 1;
+    est.grid.x0_m = centre.x() - half * step;
+    est.grid.y0_m = centre.y() - half * step;
+    est.grid.step_m = step;
+    est.grid.n = n;
+    est.grid.p.assign(logml_.begin(), logml_.begin() + static_cast<std::ptrdiff_t>(n) * n);
+    const double inv = mo.sum > 0.0 ? 1.0 / mo.sum : 0.0;
+    for (float& v : est.grid.p) v = static_cast<float>(v * inv);
+  }
   // A concentrated posterior (std under 2 cells): again on a finer grid of 25 x 25 cells spanning
   // ±3 std around the most probable cell (cell = std/4), so that the mean and covariance of a peak
   // narrower than the coarse grid are not quantised.
@@ -403,7 +414,27 @@ TagEstimate PositionPosterior::solve_coarse_to_fine(std::span<const Bin> bins, c
   opt_ = saved;
   if (!fine.ok) return coarse;
   fine.mirror_mass = coarse.mirror_mass;
+  fine.grid = coarse.grid;
   return fine;
+}
+
+double PosteriorGrid::at(double x_m, double y_m) const noexcept {
+  if (p.empty() || !(step_m > 0.0)) return 0.0;
+  const long i = std::lround((x_m - x0_m) / step_m), j = std::lround((y_m - y0_m) / step_m);
+  if (i < 0 || j < 0 || i >= n || j >= n) return 0.0;
+  return p[static_cast<std::size_t>(j) * static_cast<std::size_t>(n) + static_cast<std::size_t>(i)];
+}
+
+double colocation_bayes_factor(const PosteriorGrid& a, const PosteriorGrid& b) {
+  if (a.empty() || b.empty()) return 0.0;
+  const double area = (a.step_m * a.step_m) / (b.step_m * b.step_m);  // b's cell probabilities per a-cell
+  double s = 0.0;
+  for (int j = 0; j < a.n; ++j)
+    for (int i = 0; i < a.n; ++i) {
+      const double pa = a.p[static_cast<std::size_t>(j) * static_cast<std::size_t>(a.n) + static_cast<std::size_t>(i)];
+      if (pa > 0.0) s += pa * b.at(a.x0_m + i * a.step_m, a.y0_m + j * a.step_m) * area;
+    }
+  return static_cast<double>(a.n) * static_cast<double>(a.n) * s;
 }
 
 // ---------------------------------------------------------------------------------------------------

@@ -115,6 +115,18 @@ struct PosteriorOptions {
   double min_distance_m = 0.5;    ///< distances below this count as this (near field)
 };
 
+/// A posterior over cells of a square grid (probabilities summing to 1), kept for the co-location test
+/// of the clustering (colocation_bayes_factor()).
+struct PosteriorGrid {
+  double x0_m = 0.0, y0_m = 0.0;  ///< centre of cell (0, 0)
+  double step_m = 0.0;
+  int n = 0;                      ///< n x n cells, row-major (y rows)
+  std::vector<float> p;
+  bool empty() const noexcept { return p.empty(); }
+  /// Probability of the cell containing (x, y); 0 outside the grid.
+  double at(double x_m, double y_m) const noexcept;
+};
+
 struct TagEstimate {
   bool ok = false;
   std::string why;
@@ -130,7 +142,14 @@ struct TagEstimate {
   /// the readings are cleaner than shadowing_sd_db / fading_sd_db assume.
   double noise_ratio = 1.0;
   int bins = 0;
+  PosteriorGrid grid;             ///< the whole-square posterior (first solve of solve_coarse_to_fine())
 };
+
+/// [main] Sec. 6 gate: how much more probable two tags' readings are if the tags sit at one place than
+/// if each is anywhere on its own: the Bayes factor N·Σ_c p_a(c)·p_b(c) over a's N cells (b's
+/// posterior looked up at a's cell centres; the grid's uniform prior). > 1: the data favour one place;
+/// ≪ 1: the posteriors exclude each other. 0 when either grid is empty.
+double colocation_bayes_factor(const PosteriorGrid& a, const PosteriorGrid& b);
 
 /// The grid posterior (see the file comment). Holds its workspace: one object per thread.
 class PositionPosterior {

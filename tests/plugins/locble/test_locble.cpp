@@ -254,6 +254,40 @@ TEST(LocBleCluster, MatchesTracesThatMoveTogether) {
   EXPECT_THROW(lb::cluster_matrix({target, wrong_len}), std::invalid_argument);
 }
 
+// The co-location gate (Sec. 6 + solver.hpp): two tags at one place have overlapping posteriors (Bayes
+// factor > 1); a tag 10 m away from a well-located one is excluded (≪ 1), even though its posterior is
+// wide; an empty grid never clusters.
+TEST(LocBleCluster, ColocationBayesFactor) {
+  // An L walk; readings from the log-distance model (noise-free) for tags at a and b.
+  auto readings = [](const Vec2& tag) {
+    std::vector<lb::Bin> bins;
+    for (int k = 0; k <= 16; ++k) {
+      const Vec2 o = k <= 8 ? Vec2{0.0, 0.3 * k} : Vec2{-0.3 * (k - 8), 2.4};
+      bins.push_back({o, -60.0 - 20.0 * std::log10(std::max((tag - o).norm(), 0.5)), 5, static_cast<double>(k)});
+    }
+    return bins;
+  };
+  lb::PosteriorOptions po;
+  po.gamma_mean_dbm = -60.0;
+  po.n_mean = 2.0;
+  po.shadowing_sd_db = 1.0;  // a clean link
+  po.fading_sd_db = 2.0;
+  lb::PositionPosterior post(po);
+  const Vec2 axis{0.0, 1.0};
+  const auto a = post.solve_coarse_to_fine(readings({2.0, 3.0}), axis, false, 0.1);
+  const auto a2 = post.solve_coarse_to_fine(readings({2.5, 3.3}), axis, false, 0.1);
+  const auto far = post.solve_coarse_to_fine(readings({-8.0, -6.0}), axis, false, 0.1);
+  ASSERT_TRUE(a.ok && a2.ok && far.ok);
+  ASSERT_FALSE(a.grid.empty());
+  double total = 0.0;
+  for (float p : a.grid.p) total += p;
+  EXPECT_NEAR(total, 1.0, 1e-3);
+  EXPECT_GT(lb::colocation_bayes_factor(a.grid, a2.grid), 3.0);
+  EXPECT_LT(lb::colocation_bayes_factor(a.grid, far.grid), 0.1);
+  EXPECT_LT(lb::colocation_bayes_factor(far.grid, a.grid), 0.1);
+  EXPECT_EQ(lb::colocation_bayes_factor(a.grid, lb::PosteriorGrid{}), 0.0);
+}
+
 TEST(LocBleCluster, FuseWeightsByConfidence) {
   std::vector<Vec2> p = {{0, 0}, {4, 0}};
   std::vector<double> w = {3.0, 1.0};

@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # LocBLE scenario test (docs/locble.md, "Accuracy"): `locus simulate locble` (env=world, the default)
 # on fixed seeds through the shipped config (config/locble.yaml), scored by `locus eval --metric
-# locble`. Guards, not the issue's bar: the campaign mean over 20 seeds is 3.5 m (bar 1.5 m, not met,
-# docs/locble.md "Limits"); these seeds are ones where the method is at or near the bar today, so a
-# change that breaks the dead reckoning, the frame or the posterior fails here.
-#   - seeds 1, 14, 15 (measured 0.49 / 1.33 / 1.51 m): every tag located, mean final error <= 2.0 m;
-#   - seeds 5, 9 (1.64 / 1.59 m): every tag located, mean final error <= 2.5 m.
-# Seed-to-seed spread is large (0.5-7.8 m over seeds 1-20), so these are chosen, not representative.
+# locble`. Guards, not the issue's bar: the campaign mean over seeds 1-20 of the simulator as hard as
+# the world is 6.4 m (bar 1.5 m, not met, docs/locble.md "Limits"); these seeds are the ones where the
+# method does best today, so a change that breaks the dead reckoning, the frame or the posterior fails
+# here.
+#   - seeds 15, 4, 9 (measured 3.25 / 4.22 / 4.29 m): every tag located, mean final error <= 4.5 m;
+#   - seed 1 (4.70 m): every tag located, mean final error <= 5.0 m.
+# Seed-to-seed spread is large (3.3-9.3 m over seeds 1-20), so these are chosen, not representative.
 #   locble_scenario.sh LOCUS_BIN SOURCE_DIR
 set -euo pipefail
 locus="$1"
@@ -31,9 +32,8 @@ run_case() {  # seed max-mean-error-m
   fi
 }
 
-run_case 1 2.0
-run_case 14 2.0
-run_case 15 2.0
-run_case 5 2.5
-run_case 9 2.5
+run_case 15 4.5
+run_case 4 4.5
+run_case 9 4.5
+run_case 1 5.0
 exit "$fail"

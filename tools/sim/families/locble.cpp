@@ -3,8 +3,10 @@
 // Paper setup reproduced: the observer walks an L (first leg 2-3 m, a 90° turn, second leg
 // 1.5-2.5 m: 3.5-5 m in total, Sec. 5.2) holding a phone that scans BLE (10 Hz advertising, Sec. 7)
 // and logs its IMU with magnetometer; 1-6 tags (iBeacon-like, tx power −65..−55 dBm at 1 m) sit
-// 4-9 m away, the target to the side of the first leg, `clustered` of the others within 0.3-1 m of
-// it (Sec. 6: neighbouring beacons), the rest elsewhere. RSS follows the log-distance model with
+// 4-9 m away (either side of the first leg, from straight ahead to abeam: a tag near the first leg's
+// line leaves that leg's mirror nearly on top of it, as in the foreign locble-105), `clustered` of the
+// others within 0.3-1 m of it (Sec. 6: neighbouring beacons), the rest anywhere 4-14 m from the start
+// (far tags: a few metres of walk barely move their RSS). RSS follows the log-distance model with
 // LOS / partial-LOS / NLOS exponents (motion/ble.hpp); env = los | plos | nlos | mixed (mixed: NLOS
 // behind a wall for the first part of the walk, then LOS, with people crossing (p-LOS) at random) |
 // world (the default, as hard as the foreign generator of ../shared/scenes/README.md: the class of
@@ -30,7 +32,7 @@ Simulation make_locble(const FamilyOptions& opts) {
   using namespace motion;
   const DifficultyProfile prof = difficulty_profile(opts.difficulty);
   const int tags = static_cast<int>(opts.get_int("tags", 3, 1, 6));
-  const int clustered = static_cast<int>(opts.get_int("clustered", std::min(2, tags - 1), 0, 5));
+  const int clustered = static_cast<int>(opts.get_int("clustered", std::min(1, tags - 1), 0, 5));
   if (clustered > tags - 1)
     throw std::invalid_argument("option 'clustered': at most tags − 1 = " + std::to_string(tags - 1) + ", got " +
                                 std::to_string(clustered));
@@ -45,6 +47,7 @@ Simulation make_locble(const FamilyOptions& opts) {
   const bool c_loss = opts.get_bool("loss", true), c_quantize = opts.get_bool("quantize", true);
   const std::string turn = opts.get_choice("turn", "left", {"left", "right"});
   const double interval_s = opts.get_double("interval_s", 0.1, 0.02, 10.0);
+  const bool target_any = opts.get_choice("target_side", env == "world" ? "any" : "turn", {"turn", "any"}) == "any";
   opts.finish("locble");
 
   Simulation sim;
@@ -71,9 +74,12 @@ Simulation make_locble(const FamilyOptions& opts) {
   const double t0 = prof.offset_s_max + 0.5;
   auto walk = std::make_shared<PedestrianTrajectory>(pp, t0, Rng::derive(opts.seed, "locble/walk").next_u64());
 
-  // Tags: the target to the turn side of the first leg, 4-9 m from the start.
+  // Tags: the target 4-9 m from the start, 0-80° either side of the first leg (`target_side`: turn =
+  // the paper's layout, the turn's side 20-70°; any = the world's, the foreign scenes put tags ahead
+  // and on the far side of the turn too).
   const double d_target = layout.uniform(4.0, 9.0);
-  const double ang = side * layout.uniform(20.0, 70.0) * std::numbers::pi / 180.0;
+  const double ang = target_any ? (layout.bernoulli(0.5) ? 1.0 : -1.0) * layout.uniform(0.0, 80.0) * std::numbers::pi / 180.0
+                                : side * layout.uniform(20.0, 70.0) * std::numbers::pi / 180.0;
   const Eigen::Vector3d target(2.0 + d_target * std::cos(ang), 2.0 + d_target * std::sin(ang), layout.uniform(0.5, 1.5));
   for (int i = 0; i < tags; ++i) {
     Eigen::Vector3d pos = target;
@@ -81,7 +87,7 @@ Simulation make_locble(const FamilyOptions& opts) {
       const double r = layout.uniform(0.3, 1.0), a = layout.uniform(0.0, 2.0 * std::numbers::pi);
       pos += Eigen::Vector3d(r * std::cos(a), r * std::sin(a), layout.uniform(-0.3, 0.3));
     } else if (i > clustered) {
-      const double r = layout.uniform(4.0, 9.0), a = layout.uniform(-std::numbers::pi, std::numbers::pi);
+      const double r = layout.uniform(4.0, target_any ? 14.0 : 9.0), a = layout.uniform(-std::numbers::pi, std::numbers::pi);
       pos = Eigen::Vector3d(2.0 + r * std::cos(a), 2.0 + r * std::sin(a), layout.uniform(0.3, 2.0));
     }
     EmitterModel e;
@@ -176,7 +182,9 @@ Simulation make_locble(const FamilyOptions& opts) {
   };
   BleChannelParams bp;
   bp.rx_offset_db = layout.normal(0.0, 3.0);
-  bp.loss_probability = 0.05 * prof.imu_noise_scale * 2.0;  // easy 5 %, normal 10 %, hard 20 %
+  // easy 5 %, normal 10 %, hard 20 %; env=world 3x that (easy 15 %, normal 30 %: the foreign
+  // generator's target_loss 0.3 at normal), before the bursts.
+  bp.loss_probability = std::min(0.6, 0.05 * prof.imu_noise_scale * 2.0 * (env == "world" ? 3.0 : 1.0));
   if (!c_rx_offset) bp.rx_offset_db = 0.0;
   if (!c_loss) bp.loss_probability = 0.0;
   bp.fading = c_fading;
@@ -197,7 +205,9 @@ Simulation make_locble(const FamilyOptions& opts) {
       BleTagChannel c;
       for (std::size_t k = 0; k < 3; ++k) {
         c.exponent_offset[k] = world.uniform(-0.25, 0.25);
-        c.static_offset_db[k] = world.normal(0.0, 1.5 + 1.0 * prof.imu_noise_scale);
+        // σ 4 dB at normal: the foreign generator's per-class offsets of locble-105 (-8.9 to +4.4 dB
+        // over 2 tags x 3 classes) have a spread of ~4.5 dB.
+        c.static_offset_db[k] = world.normal(0.0, 2.0 + 2.0 * prof.imu_noise_scale);
         c.channel_offset_db[k] = world.normal(0.0, 1.5);
       }
       c.tx_bias_db = world.normal(2.0, 2.0);
@@ -245,10 +255,12 @@ namespace locus::sim::registered_families {
 const Family& locble() {
   static const Family family{
       "locble",
-      "LocBLE (paper 003): an observer walks an L (3.5-5 m) scanning BLE; 1-6 tags 4-9 m away, some clustered "
+      "LocBLE (paper 003): an observer walks an L (3.5-5 m) scanning BLE; 1-6 tags 4-14 m away, either side, some clustered "
       "within 1 m of the target; log-distance RSS with LOS/p-LOS/NLOS exponents; IMU; no audio",
       {{"tags", "int", "3", "number of tags (1..6); tag1 is the target"},
-       {"clustered", "int", "min(2, tags-1)", "tags placed within 0.3-1 m of the target"},
+       {"clustered", "int", "min(1, tags-1)", "tags placed within 0.3-1 m of the target (the rest: 4-14 m from the start, any direction)"},
+       {"target_side", "turn|any", "env=world: any, else turn",
+        "turn: the target 20-70 deg to the turn's side of the first leg (paper); any: 0-80 deg either side (world)"},
        {"env", "los|plos|nlos|mixed|world", "world",
         "propagation (mixed: NLOS then LOS, people crossing; world: walls, people, bystanders, per-link channels)"},
        {"walk", "paper|long", "paper", "leg lengths: paper 2-3 m + 1.5-2.5 m; long 2.5-4.5 m each (foreign scenes)"},
