@@ -9,6 +9,7 @@
 #include <string>
 
 #include "locus/dsp/peak.hpp"
+#include "locus/dsp/simd.hpp"
 #include "locus/fft.hpp"
 
 namespace locus::dsp {
@@ -33,6 +34,8 @@ void EmissionCanceller::configure(const std::vector<float>& h, FftPlanner& plann
   taps_ = opt_.taps_before + opt_.taps_after + 1;
   padded_ = len_ + taps_ - 1;
   h_.assign(h.begin(), h.end());
+  hf_.assign(h.begin(), h.end());
+  wd_.assign(len_ + taps_ - 1, 0.0);
   energy_ = 0.0;
   for (double v : h_) energy_ += v * v;
   if (!(energy_ > 0.0) || !std::isfinite(energy_))
@@ -165,15 +168,15 @@ void EmissionCanceller::search(std::size_t ch, std::size_t lags) noexcept {
 
 void EmissionCanceller::fit_and_subtract(std::size_t ch, std::size_t i0, double pz, double coefficient) noexcept {
   float* w = corr_.samples_mutable(ch) + i0;  // the fit support [i0, i0 + padded)
-  // b_t = sum_j w[t + j] h[j]: correlation of the support with h shifted by t - P.
+  // b_t = sum_j w[t + j] h[j]: correlation of the support with h shifted by t - P, in double (an
+  // error in b lands in R's weak, out-of-band directions amplified by 1 / lambda), on a double copy
+  // of the support with independent lanes (simd::dot_f64: taps x L multiply-adds, the fit's cost).
   double e0 = 0.0;
-  for (std::size_t j = 0; j < padded_; ++j) e0 += static_cast<double>(w[j]) * w[j];
-  for (std::size_t t = 0; t < taps_; ++t) {
-    double s = 0.0;
-    const float* ws = w + t;
-    for (std::size_t j = 0; j < len_; ++j) s += ws[j] * h_[j];
-    b_[t] = s;
+  for (std::size_t j = 0; j < padded_; ++j) {
+    wd_[j] = w[j];
+    e0 += wd_[j] * wd_[j];
   }
+  for (std::size_t t = 0; t < taps_; ++t) b_[t] = simd::dot_f64(wd_.data() + t, h_.data(), len_);
   // Solve L y = b, then L^T g = y.
   for (std::size_t i = 0; i < taps_; ++i) {
     double s = b_[i];
@@ -185,11 +188,7 @@ void EmissionCanceller::fit_and_subtract(std::size_t ch, std::size_t i0, double 
     for (std::size_t k = ii + 1; k < taps_; ++k) s -= chol_[k * taps_ + ii] * g_[k];
     g_[ii] = s / chol_[ii * taps_ + ii];
   }
-  for (std::size_t t = 0; t < taps_; ++t) {
-    const float gt = static_cast<float>(g_[t]);
-    float* ws = w + t;
-    for (std::size_t j = 0; j < len_; ++j) ws[j] -= gt * static_cast<float>(h_[j]);
-  }
+  for (std::size_t t = 0; t < taps_; ++t) simd::sub1(w + t, hf_.data(), static_cast<float>(g_[t]), len_);
   double e1 = 0.0;
   for (std::size_t j = 0; j < padded_; ++j) e1 += static_cast<double>(w[j]) * w[j];
 

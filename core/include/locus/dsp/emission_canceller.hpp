@@ -128,6 +128,8 @@ class EmissionCanceller {
   double energy_ = 0.0;
   double threshold_ = 100.0, min_rho2_ = 0.25;
   std::vector<double> h_;         // the template
+  std::vector<float> hf_;         // the template in float (the subtraction)
+  std::vector<double> wd_;        // the fit support in double (padded length)
   std::vector<double> chol_;      // taps x taps lower Cholesky factor of R + lambda r0 I
   std::vector<double> b_, g_;     // taps
   std::vector<float> pow_, sorted_;
