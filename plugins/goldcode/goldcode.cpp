@@ -776,7 +776,7 @@ class GoldcodeDetector final : public Detector {
   // Doppler versions f of |z_f(d)|² / energy_f, dopf_[d] = that f. z_f = IDFT(X · conj(C_f)), X the
   // complex spectrum of the window (spec_xr_/spec_xi2_, split), C_f the version's complex template
   // spectrum (stored conjugated and split): one complex multiply per bin and one complex inverse FFT
-  // per version. GCC/Clang vectors (4 bins / 4 lags per step), no -ffast-math needed.
+  // per version (kernels in locus/dsp/simd.hpp).
   void coarse_max(std::size_t u, std::size_t lags) noexcept {
     std::fill(r2f_.begin(), r2f_.begin() + static_cast<std::ptrdiff_t>(lags), 0.0f);
     std::fill(dopf_.begin(), dopf_.begin() + static_cast<std::ptrdiff_t>(lags), static_cast<float>(d0_));
@@ -786,38 +786,10 @@ class GoldcodeDetector final : public Detector {
     float* df = dopf_.data();
     for (std::size_t f = 0; f < nd_; ++f) {
       const CodeTemplate& t = tpl(u, f);
-      const float* cr = t.cc_re.data();
-      const float* cm = t.cc_im.data();
-      float* p = reinterpret_cast<float*>(cfft_->input());
-      for (std::size_t k = 0; k < nfft_; k += 4) {
-        const v4f ar = simd::load4(xr + k), ai = simd::load4(xm + k), br = simd::load4(cr + k), bi = simd::load4(cm + k);
-        const v4f pr = ar * br - ai * bi, pi = ar * bi + ai * br;
-        simd::store4(p + 2 * k, __builtin_shufflevector(pr, pi, 0, 4, 1, 5));
-        simd::store4(p + 2 * k + 4, __builtin_shufflevector(pr, pi, 2, 6, 3, 7));
-      }
+      simd::cmul_split(xr, xm, t.cc_re.data(), t.cc_im.data(), reinterpret_cast<float*>(cfft_->input()), nfft_);
       cfft_->inverse();
-      const float* z = reinterpret_cast<const float*>(cfft_->output());
       const float inv_t = t.energy > 1e-30 ? static_cast<float>(1.0 / t.energy) : 0.0f;
-      const v4f vt = {inv_t, inv_t, inv_t, inv_t};
-      const float ff = static_cast<float>(f);
-      const v4f vf = {ff, ff, ff, ff};
-      std::size_t d = 0;
-      for (; d + 4 <= lags; d += 4) {
-        const v4f a = simd::load4(z + 2 * d), b = simd::load4(z + 2 * d + 4);
-        const v4f a2 = a * a, b2 = b * b;
-        const v4f e = (__builtin_shufflevector(a2, b2, 0, 2, 4, 6) + __builtin_shufflevector(a2, b2, 1, 3, 5, 7)) * vt;
-        const v4f best = simd::load4(r2 + d);
-        const simd::v4i gt = e > best;
-        simd::store4(r2 + d, simd::select(gt, e, best));
-        simd::store4(df + d, simd::select(gt, vf, simd::load4(df + d)));
-      }
-      for (; d < lags; ++d) {
-        const float e = (z[2 * d] * z[2 * d] + z[2 * d + 1] * z[2 * d + 1]) * inv_t;
-        if (e > r2[d]) {
-          r2[d] = e;
-          df[d] = ff;
-        }
-      }
+      simd::max_norm(reinterpret_cast<const float*>(cfft_->output()), inv_t, static_cast<float>(f), r2, df, lags);
     }
   }
 

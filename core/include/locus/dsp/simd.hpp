@@ -34,75 +34,32 @@ inline v2d load2(const double* p) noexcept {
   return v;
 }
 
-/// The 8 float lanes of two accumulators added in double.
-inline double hsum(v4f a, v4f b) noexcept {
-  return (static_cast<double>(a[0]) + a[1] + a[2] + a[3]) + (static_cast<double>(b[0]) + b[1] + b[2] + b[3]);
-}
+// The kernels below are compiled twice on x86-64 (simd.cpp: GCC/Clang target_clones, picked at load
+// time): for AVX2 (256-bit registers) and for baseline SSE2. Both run the same 8-lane arithmetic in
+// the same order, so the results are bit-identical on every x86-64 machine; elsewhere (the Pi) the
+// baseline build runs.
 
-/// Σ y·a and Σ y·b over n floats (8 float lanes, partial sums added in double; relative error ~1e-6).
-inline void dot2(const float* y, const float* a, const float* b, std::size_t n, double& ra, double& rb) noexcept {
-  v4f sa0 = {}, sa1 = {}, sb0 = {}, sb1 = {};
-  std::size_t j = 0;
-  for (; j + 8 <= n; j += 8) {
-    const v4f y0 = load4(y + j), y1 = load4(y + j + 4);
-    sa0 += y0 * load4(a + j);
-    sa1 += y1 * load4(a + j + 4);
-    sb0 += y0 * load4(b + j);
-    sb1 += y1 * load4(b + j + 4);
-  }
-  double da = hsum(sa0, sa1), db = hsum(sb0, sb1);
-  for (; j < n; ++j) {
-    da += static_cast<double>(y[j]) * a[j];
-    db += static_cast<double>(y[j]) * b[j];
-  }
-  ra = da;
-  rb = db;
-}
+/// Σ y·a and Σ y·b over n floats (8 float lanes, lane sums added in double; relative error ~1e-6).
+void dot2(const float* y, const float* a, const float* b, std::size_t n, double& ra, double& rb) noexcept;
 
 /// Σ y² over n floats (8 float lanes).
-inline double energy(const float* y, std::size_t n) noexcept {
-  v4f s0 = {}, s1 = {};
-  std::size_t j = 0;
-  for (; j + 8 <= n; j += 8) {
-    const v4f y0 = load4(y + j), y1 = load4(y + j + 4);
-    s0 += y0 * y0;
-    s1 += y1 * y1;
-  }
-  double e = hsum(s0, s1);
-  for (; j < n; ++j) e += static_cast<double>(y[j]) * y[j];
-  return e;
-}
+double energy(const float* y, std::size_t n) noexcept;
 
 /// y[j] −= ci·a[j] + cq·b[j], j < n (float, element-wise: the same values as the scalar loop).
-inline void sub2(float* y, const float* a, const float* b, float ci, float cq, std::size_t n) noexcept {
-  const v4f vi = {ci, ci, ci, ci}, vq = {cq, cq, cq, cq};
-  std::size_t j = 0;
-  for (; j + 4 <= n; j += 4) store4(y + j, load4(y + j) - (vi * load4(a + j) + vq * load4(b + j)));
-  for (; j < n; ++j) y[j] -= ci * a[j] + cq * b[j];
-}
+void sub2(float* y, const float* a, const float* b, float ci, float cq, std::size_t n) noexcept;
 
 /// y[j] −= g·a[j], j < n (float, element-wise: the same values as the scalar loop).
-inline void sub1(float* y, const float* a, float g, std::size_t n) noexcept {
-  const v4f vg = {g, g, g, g};
-  std::size_t j = 0;
-  for (; j + 4 <= n; j += 4) store4(y + j, load4(y + j) - vg * load4(a + j));
-  for (; j < n; ++j) y[j] -= g * a[j];
-}
+void sub1(float* y, const float* a, float g, std::size_t n) noexcept;
 
 /// Σ a·b over n doubles (8 double lanes: full double precision, for sums whose errors a fit amplifies).
-inline double dot_f64(const double* a, const double* b, std::size_t n) noexcept {
-  v2d s0 = {}, s1 = {}, s2 = {}, s3 = {};
-  std::size_t j = 0;
-  for (; j + 8 <= n; j += 8) {
-    s0 += load2(a + j) * load2(b + j);
-    s1 += load2(a + j + 2) * load2(b + j + 2);
-    s2 += load2(a + j + 4) * load2(b + j + 4);
-    s3 += load2(a + j + 6) * load2(b + j + 6);
-  }
-  const v2d s = (s0 + s1) + (s2 + s3);
-  double r = s[0] + s[1];
-  for (; j < n; ++j) r += a[j] * b[j];
-  return r;
-}
+double dot_f64(const double* a, const double* b, std::size_t n) noexcept;
+
+/// out[k] = (xr[k] + j·xi[k]) · (cr[k] + j·ci[k]), k < n, written interleaved
+/// (re, im) to out[2k], out[2k+1]: a spectrum times a (conjugated, split) template spectrum.
+void cmul_split(const float* xr, const float* xi, const float* cr, const float* ci, float* out, std::size_t n) noexcept;
+
+/// Running maximum over versions: for d < n, e = |z[d]|²·scale (z interleaved complex); where
+/// e > best[d]: best[d] = e, tag[d] = tag_value.
+void max_norm(const float* z, float scale, float tag_value, float* best, float* tag, std::size_t n) noexcept;
 
 }  // namespace locus::dsp::simd
