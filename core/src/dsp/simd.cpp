@@ -3,6 +3,8 @@
 // layout and the order of every sum are the same in both, so both give the same bits.
 #include "locus/dsp/simd.hpp"
 
+#include <cstring>
+
 // The 8-lane helpers below are always inlined into the clones: their by-value AVX-sized vectors never
 // cross a call (GCC warns about that ABI regardless).
 #if defined(__GNUC__) && !defined(__clang__)
@@ -17,17 +19,16 @@ using v8f = float __attribute__((vector_size(32)));
 using v8i = int __attribute__((vector_size(32)));
 using v4d = double __attribute__((vector_size(32)));
 
-inline v8f load8(const float* p) noexcept {
-  v8f v;
+// Unaligned vector load / store (memcpy: no alignment assumed, one instruction once inlined).
+template <class V, class T>
+inline V load(const T* p) noexcept {
+  V v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
+inline v8f load8(const float* p) noexcept { return load<v8f>(p); }
+inline v4d load4d(const double* p) noexcept { return load<v4d>(p); }
 inline void store8(float* p, v8f v) noexcept { std::memcpy(p, &v, sizeof v); }
-inline v4d load4d(const double* p) noexcept {
-  v4d v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
 // The 8 lanes added in double, lanes 0-3 then 4-7 (the order of the former two 4-lane accumulators).
 inline double hsum8(v8f a) noexcept {
   return (static_cast<double>(a[0]) + a[1] + a[2] + a[3]) + (static_cast<double>(a[4]) + a[5] + a[6] + a[7]);

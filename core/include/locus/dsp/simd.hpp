@@ -9,30 +9,10 @@
 #pragma once
 
 #include <cstddef>
-#include <cstring>
 
 namespace locus::dsp::simd {
 
-using v4f = float __attribute__((vector_size(16)));
-using v2d = double __attribute__((vector_size(16)));
-using v4i = int __attribute__((vector_size(16)));  // lane masks (a v4f comparison gives -1 / 0)
-
-/// Lane-wise mask ? a : b (mask from a comparison).
-inline v4f select(v4i mask, v4f a, v4f b) noexcept {
-  return reinterpret_cast<v4f>((reinterpret_cast<v4i>(a) & mask) | (reinterpret_cast<v4i>(b) & ~mask));
-}
-
-inline v4f load4(const float* p) noexcept {
-  v4f v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-inline void store4(float* p, v4f v) noexcept { std::memcpy(p, &v, sizeof v); }
-inline v2d load2(const double* p) noexcept {
-  v2d v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
+using v4f = float __attribute__((vector_size(16)));  // 4 float lanes (the IQ decimator's taps)
 
 // The kernels below are compiled twice on x86-64 (simd.cpp: GCC/Clang target_clones, picked at load
 // time): for AVX2 (256-bit registers) and for baseline SSE2. Both run the same 8-lane arithmetic in
