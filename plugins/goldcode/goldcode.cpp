@@ -1140,56 +1140,62 @@ class GoldcodeDetector final : public Detector {
       const double zi = mp_zi_[static_cast<std::size_t>(j)], zq = mp_zq_[static_cast<std::size_t>(j)];
       best1 = std::max(best1, (eqq * zi * zi - 2.0 * eiq * zi * zq + eii * zq * zq) / det1);
     }
-    // Two paths: 4x4 normal equations per (τ1, δ), Cholesky. The Gram matrix depends on δ only: one
-    // factorisation per δ, then a forward and a back substitution per τ1.
-    struct Chol4 {
-      double L[4][4] = {};
+    // Two paths: 4x4 normal equations per (τ1, δ). The Gram matrix G depends on δ only: its inverse
+    // once per δ (Cholesky, positive-definiteness checked on the way), then per τ1 the amplitudes
+    // c = G⁻¹b and the explained energy bᵀc (no division in the τ1 loop).
+    struct Gram4 {
+      double inv[4][4] = {};
       bool ok = false;
     };
     auto factor = [&](std::size_t d) noexcept {
-      Chol4 f;
+      Gram4 f;
       const double* gd = g + 4 * d;
       const double G[4][4] = {{eii, eiq, gd[0], gd[1]}, {eiq, eqq, gd[2], gd[3]}, {gd[0], gd[2], eii, eiq}, {gd[1], gd[3], eiq, eqq}};
+      double L[4][4] = {}, Li[4][4] = {};
       for (int i = 0; i < 4; ++i)
         for (int k = 0; k <= i; ++k) {
           double sum = G[i][k];
-          for (int m = 0; m < k; ++m) sum -= f.L[i][m] * f.L[k][m];
+          for (int m = 0; m < k; ++m) sum -= L[i][m] * L[k][m];
           if (i == k) {
             if (!(sum > 1e-9 * eii)) return f;
-            f.L[i][i] = std::sqrt(sum);
+            L[i][i] = std::sqrt(sum);
           } else {
-            f.L[i][k] = sum / f.L[k][k];
+            L[i][k] = sum / L[k][k];
           }
+        }
+      for (int k = 0; k < 4; ++k) {  // L⁻¹ (lower triangular), column by column
+        Li[k][k] = 1.0 / L[k][k];
+        for (int i = k + 1; i < 4; ++i) {
+          double sum = 0.0;
+          for (int m = k; m < i; ++m) sum -= L[i][m] * Li[m][k];
+          Li[i][k] = sum / L[i][i];
+        }
+      }
+      for (int r = 0; r < 4; ++r)  // G⁻¹ = L⁻ᵀ L⁻¹
+        for (int q = 0; q < 4; ++q) {
+          double sum = 0.0;
+          for (int i = std::max(r, q); i < 4; ++i) sum += Li[i][r] * Li[i][q];
+          f.inv[r][q] = sum;
         }
       f.ok = true;
       return f;
     };
-    auto explain2 = [&](const Chol4& f, std::int64_t j, std::size_t d, double& p1, double& p2) noexcept {
+    auto explain2 = [&](const Gram4& f, std::int64_t j, std::size_t d, double& p1, double& p2) noexcept {
       if (!f.ok) return -1.0;
-      const auto (&L)[4][4] = f.L;
       const double b[4] = {mp_zi_[static_cast<std::size_t>(j)], mp_zq_[static_cast<std::size_t>(j)],
                            mp_zi_[static_cast<std::size_t>(j) + d], mp_zq_[static_cast<std::size_t>(j) + d]};
-      double y[4], c[4];
-      for (int i = 0; i < 4; ++i) {
-        double sum = b[i];
-        for (int m = 0; m < i; ++m) sum -= L[i][m] * y[m];
-        y[i] = sum / L[i][i];
-      }
-      for (int i = 3; i >= 0; --i) {
-        double sum = y[i];
-        for (int m = i + 1; m < 4; ++m) sum -= L[m][i] * c[m];
-        c[i] = sum / L[i][i];
-      }
+      double c[4];
+      for (int r = 0; r < 4; ++r) c[r] = f.inv[r][0] * b[0] + f.inv[r][1] * b[1] + f.inv[r][2] * b[2] + f.inv[r][3] * b[3];
       p1 = c[0] * c[0] + c[1] * c[1];
       p2 = c[2] * c[2] + c[3] * c[3];
-      return y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3];
+      return b[0] * c[0] + b[1] * c[1] + b[2] * c[2] + b[3] * c[3];
     };
     double best2 = -1.0, bp1 = 0.0, bp2 = 0.0;
     std::int64_t bj = -1;
     std::size_t bd = 0;
-    Chol4 fbest;
+    Gram4 fbest;
     for (std::size_t d = mp_min_; d <= mp_max_; ++d) {
-      const Chol4 f = factor(d);
+      const Gram4 f = factor(d);
       if (!f.ok) continue;
       for (std::int64_t j = 0; j < nl; ++j) {
         double p1, p2;
