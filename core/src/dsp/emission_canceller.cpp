@@ -75,6 +75,9 @@ void EmissionCanceller::configure(const std::vector<float>& h, FftPlanner& plann
       }
     }
   }
+  cholt_.assign(taps_ * taps_, 0.0);
+  for (std::size_t i = 0; i < taps_; ++i)
+    for (std::size_t j = 0; j <= i; ++j) cholt_[j * taps_ + i] = chol_[i * taps_ + j];
   b_.assign(taps_, 0.0);
   g_.assign(taps_, 0.0);
   threshold_ = std::pow(10.0, opt_.threshold_db / 10.0);
@@ -177,17 +180,11 @@ void EmissionCanceller::fit_and_subtract(std::size_t ch, std::size_t i0, double 
     e0 += wd_[j] * wd_[j];
   }
   for (std::size_t t = 0; t < taps_; ++t) b_[t] = simd::dot_f64(wd_.data() + t, h_.data(), len_);
-  // Solve L y = b, then L^T g = y.
-  for (std::size_t i = 0; i < taps_; ++i) {
-    double s = b_[i];
-    for (std::size_t k = 0; k < i; ++k) s -= chol_[i * taps_ + k] * g_[k];
-    g_[i] = s / chol_[i * taps_ + i];
-  }
-  for (std::size_t ii = taps_; ii-- > 0;) {
-    double s = g_[ii];
-    for (std::size_t k = ii + 1; k < taps_; ++k) s -= chol_[k * taps_ + ii] * g_[k];
-    g_[ii] = s / chol_[ii * taps_ + ii];
-  }
+  // Solve L y = b, then L^T g = y (rows of L and of L^T are contiguous: vector dot products).
+  for (std::size_t i = 0; i < taps_; ++i)
+    g_[i] = (b_[i] - simd::dot_f64(chol_.data() + i * taps_, g_.data(), i)) / chol_[i * taps_ + i];
+  for (std::size_t ii = taps_; ii-- > 0;)
+    g_[ii] = (g_[ii] - simd::dot_f64(cholt_.data() + ii * taps_ + ii + 1, g_.data() + ii + 1, taps_ - ii - 1)) / chol_[ii * taps_ + ii];
   for (std::size_t t = 0; t < taps_; ++t) simd::sub1(w + t, hf_.data(), static_cast<float>(g_[t]), len_);
   double e1 = 0.0;
   for (std::size_t j = 0; j < padded_; ++j) e1 += static_cast<double>(w[j]) * w[j];

@@ -131,6 +131,7 @@ class EmissionCanceller {
   std::vector<float> hf_;         // the template in float (the subtraction)
   std::vector<double> wd_;        // the fit support in double (padded length)
   std::vector<double> chol_;      // taps x taps lower Cholesky factor of R + lambda r0 I
+  std::vector<double> cholt_;     // its transpose (the back substitution reads rows)
   std::vector<double> b_, g_;     // taps
   std::vector<float> pow_, sorted_;
   std::vector<std::uint8_t> masked_;  // per lag of a window: not a candidate
