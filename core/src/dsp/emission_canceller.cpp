@@ -104,6 +104,21 @@ std::size_t EmissionCanceller::flush(std::size_t ch) noexcept {
 
 void EmissionCanceller::reset(std::size_t ch, std::uint64_t next_index) noexcept { corr_.reset(ch, next_index); }
 
+// sorted[n/2] >= v over x[0], x[stride], ... (n values): at least n - n/2 of them are >= v. One pass.
+bool EmissionCanceller::median_at_least(const float* x, std::size_t n, std::size_t stride, float v) noexcept {
+  std::size_t c = 0;
+  for (std::size_t i = 0; i < n; ++i) c += x[i * stride] >= v ? 1 : 0;
+  return c >= n - n / 2;
+}
+
+// sorted[n/2] of x[0], x[stride], ... (n values), selected in sorted_.
+double EmissionCanceller::median(const float* x, std::size_t n, std::size_t stride) noexcept {
+  for (std::size_t i = 0; i < n; ++i) sorted_[i] = x[i * stride];
+  const auto mid = sorted_.begin() + static_cast<std::ptrdiff_t>(n / 2);
+  std::nth_element(sorted_.begin(), mid, sorted_.begin() + static_cast<std::ptrdiff_t>(n));
+  return static_cast<double>(*mid);
+}
+
 void EmissionCanceller::search(std::size_t ch, std::size_t lags) noexcept {
   float* pw = pow_.data();
   // Decimated baseband screen first (nearly every window holds no emission).
@@ -116,26 +131,43 @@ void EmissionCanceller::search(std::size_t ch, std::size_t lags) noexcept {
     for (std::size_t m = 0; m < nm; ++m) {
       pw[m] = std::norm(z[m]);
       pmax = std::max(pmax, pw[m]);
-      sorted_[m] = pw[m];
     }
-    const auto mid = sorted_.begin() + static_cast<std::ptrdiff_t>(nm / 2);
-    std::nth_element(sorted_.begin(), mid, sorted_.begin() + static_cast<std::ptrdiff_t>(nm));
-    const double noise = std::max(static_cast<double>(*mid) / std::numbers::ln2, std::numeric_limits<double>::min());
     // -3 dB margin below the worst between-lag loss: a peak between decimated lags is not missed.
-    if (pmax <= 0.5 * corr_.baseband_peak_ratio(0) * threshold_ * noise) return;
+    const double margin = 0.5 * corr_.baseband_peak_ratio(0) * threshold_;
+    auto quiet = [&](double median) {
+      return pmax <= margin * std::max(median / std::numbers::ln2, std::numeric_limits<double>::min());
+    };
+    // `quiet` grows with the median: when it holds at v and the median is >= v (a count), it holds at
+    // the median, which then need not be selected (the usual window: no emission).
+    // Likewise below: not quiet at lo and the median <= lo (a window with an emission).
+    const float v = static_cast<float>(static_cast<double>(pmax) * std::numbers::ln2 / margin);
+    const float lo = v * 0.9999f;
+    if (std::isfinite(v) && quiet(v) && median_at_least(pw, nm, 1, v)) return;
+    const bool loud = std::isfinite(v) && !quiet(lo) && !median_at_least(pw, nm, 1, std::nextafter(lo, INFINITY));
+    if (!loud && quiet(median(pw, nm, 1))) return;
   }
   corr_.correlate(0);
   const float* re = corr_.real(0);
   const float* im = corr_.imag(0);
-  std::size_t m = 0;
-  for (std::size_t i = 0; i < lags; ++i) {
-    pw[i] = re[i] * re[i] + im[i] * im[i];
-    if (i % 4 == 0) sorted_[m++] = pw[i];
-  }
-  const auto mid = sorted_.begin() + static_cast<std::ptrdiff_t>(m / 2);
-  std::nth_element(sorted_.begin(), mid, sorted_.begin() + static_cast<std::ptrdiff_t>(m));
-  const double noise = std::max(static_cast<double>(*mid) / std::numbers::ln2, std::numeric_limits<double>::min());
-  const double thr = noise * threshold_;
+  for (std::size_t i = 0; i < lags; ++i) pw[i] = re[i] * re[i] + im[i] * im[i];
+  // Noise power: median of every 4th lag / ln 2. A candidate must exceed threshold_ x noise; that
+  // decision falls with the median, so a count against the boundary value usually settles it without
+  // selecting the median (selected once, when a count cannot tell).
+  const std::size_t m = (lags + 3) / 4;
+  double exact_median = -1.0;
+  auto above = [&](float p) {
+    auto passes = [&](double median) {
+      return p > std::max(median / std::numbers::ln2, std::numeric_limits<double>::min()) * threshold_;
+    };
+    if (exact_median < 0.0) {
+      const float b = static_cast<float>(static_cast<double>(p) * std::numbers::ln2 / threshold_);
+      const float lo = b * 0.9999f, hi = b * 1.0001f;
+      if (std::isfinite(b) && passes(lo) && !median_at_least(pw, m, 4, std::nextafter(lo, INFINITY))) return true;
+      if (std::isfinite(b) && !passes(hi) && median_at_least(pw, m, 4, hi)) return false;
+      exact_median = median(pw, m, 4);
+    }
+    return passes(exact_median);
+  };
   std::fill(masked_.begin(), masked_.begin() + static_cast<std::ptrdiff_t>(lags), std::uint8_t{0});
   const float* x = corr_.samples(ch);
   for (std::size_t round = 0; round < opt_.max_per_window; ++round) {
@@ -146,7 +178,7 @@ void EmissionCanceller::search(std::size_t ch, std::size_t lags) noexcept {
         pbest = pw[i];
         best = i;
       }
-    if (best == lags || !(pbest > thr)) break;
+    if (best == lags || !above(pbest)) break;
     // Correlation values within one padded template of this lag change with the subtraction (or
     // belong to the same event): never candidates again in this window.
     const std::size_t lo = best >= padded_ ? best - padded_ + 1 : 0;

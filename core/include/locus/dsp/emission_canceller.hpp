@@ -120,6 +120,8 @@ class EmissionCanceller {
 
  private:
   void search(std::size_t ch, std::size_t lags) noexcept;
+  static bool median_at_least(const float* x, std::size_t n, std::size_t stride, float v) noexcept;
+  double median(const float* x, std::size_t n, std::size_t stride) noexcept;
   void fit_and_subtract(std::size_t ch, std::size_t i0, double pz, double coefficient) noexcept;
 
   Options opt_;
