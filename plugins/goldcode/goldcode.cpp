@@ -17,6 +17,7 @@
 #include "locus/dsp/fir.hpp"
 #include "locus/dsp/iir.hpp"
 #include "locus/dsp/signals.hpp"
+#include "locus/dsp/simd.hpp"
 #include "locus/fftw_planner.hpp"
 
 namespace locus::plugins::goldcode {
@@ -28,7 +29,7 @@ using cf = std::complex<float>;
 using cd = std::complex<double>;
 
 struct CodeTemplate {
-  std::vector<cf> spec_i, spec_q;   // rfft of the zero-padded, mean-removed baseband template (I, Q)
+  std::vector<float> cc_re, cc_im;  // conj(DFT) of the zero-padded, mean-removed complex baseband template (split)
   double energy = 0.0;              // Σ|T − T̄|²
   std::vector<float> full_i, full_q;  // full-rate band-passed template, both quadratures
   double full_energy = 0.0;         // Σ full_i² (≈ Σ full_q²)
@@ -71,7 +72,8 @@ struct Member {
   std::size_t dop = 0;    // Doppler bin of the template version
 };
 
-using v4f = float __attribute__((vector_size(16)));  // GCC/Clang vectors: SSE on x86-64, NEON on the Pi
+using dsp::simd::v4f;  // GCC/Clang vectors: SSE on x86-64, NEON on the Pi
+namespace simd = dsp::simd;
 
 // The anti-alias low-pass and decimation of the I and Q streams in one pass (the same arithmetic
 // as dsp::FirDecimator, which filters the templates offline: Σ taps[k]·x[oldest + k], outputs only
@@ -357,15 +359,28 @@ class GoldcodeDetector final : public Detector {
         v -= mean;
         t.energy += std::norm(v);
       }
-      t.spec_i.resize(nfft_ / 2 + 1);
-      t.spec_q.resize(nfft_ / 2 + 1);
+      // Complex spectrum C of T = A + j·B from the real spectra of A and B, stored conjugated and
+      // split (coarse_max multiplies X·conj(C)).
+      std::vector<cf> sa(nfft_ / 2 + 1), sb(nfft_ / 2 + 1);
       std::fill(buf.begin(), buf.end(), 0.0f);
       for (std::size_t i = 0; i < M_; ++i) buf[i] = static_cast<float>(bt[i].real());
-      fft_->forward(buf.data(), t.spec_i.data());
+      fft_->forward(buf.data(), sa.data());
       std::fill(buf.begin(), buf.end(), 0.0f);
       for (std::size_t i = 0; i < M_; ++i) buf[i] = static_cast<float>(bt[i].imag());
-      fft_->forward(buf.data(), t.spec_q.data());
+      fft_->forward(buf.data(), sb.data());
+      t.cc_re.assign(nfft_, 0.0f);
+      t.cc_im.assign(nfft_, 0.0f);
+      for (std::size_t k = 0; k <= nfft_ / 2; ++k) {
+        const cf a = sa[k], b = sb[k];
+        t.cc_re[k] = a.real() - b.imag();
+        t.cc_im[k] = -(a.imag() + b.real());
+        if (k > 0 && k < nfft_ / 2) {
+          t.cc_re[nfft_ - k] = a.real() + b.imag();
+          t.cc_im[nfft_ - k] = -(b.real() - a.imag());
+        }
+      }
     }
+    cfft_ = ctx.fft.plan_complex(nfft_);
 
     // Own-emission cancellation (dsp::EmissionCanceller): the code this device emits itself, when no
     // other source of the scene emits the same chips, is found in the raw audio, fitted with its
@@ -463,17 +478,15 @@ class GoldcodeDetector final : public Detector {
     bp_.assign(max_block_, 0.0f);
     allow_.assign(hop_, 1);
     r2f_.assign(hop_, 0.0f);
-    wf_.assign(hop_, 0.0f);
     mi_.assign(max_block_, 0.0f);
     mq_.assign(max_block_, 0.0f);
     di_.assign(max_block_ / D_ + 2, 0.0f);
     dq_.assign(max_block_ / D_ + 2, 0.0f);
     spec_xi_.assign(nfft_ / 2 + 1, cf{});
     spec_xq_.assign(nfft_ / 2 + 1, cf{});
-    spec_w_.assign(nfft_ / 2 + 1, cf{});
-    spec_w2_.assign(nfft_ / 2 + 1, cf{});
-    re_.assign(nfft_, 0.0f);
-    im_.assign(nfft_, 0.0f);
+    spec_xr_.assign(nfft_, 0.0f);
+    spec_xm_.assign(nfft_, 0.0f);
+    dopf_.assign(hop_, 0.0f);
     rho_.assign(hop_ * ncodes_, 0.0);
     dop_.assign(hop_ * ncodes_, 0);
     win_w_.assign(hop_, 0.0);
@@ -686,6 +699,17 @@ class GoldcodeDetector final : public Detector {
     if (n_allowed > 0) {
       fft_->forward(ch.xi.data(), spec_xi_.data());
       fft_->forward(ch.xq.data(), spec_xq_.data());
+      // X = DFT(xi + j·xq), split: X[k] = XI[k] + j·XQ[k], X[n−k] = conj(XI[k]) + j·conj(XQ[k]).
+      const std::size_t n = nfft_;
+      for (std::size_t k = 0; k <= n / 2; ++k) {
+        const cf a = spec_xi_[k], b = spec_xq_[k];
+        spec_xr_[k] = a.real() - b.imag();
+        spec_xm_[k] = a.imag() + b.real();
+        if (k > 0 && k < n / 2) {
+          spec_xr_[n - k] = a.real() + b.imag();
+          spec_xm_[n - k] = b.real() - a.imag();
+        }
+      }
     }
     // Exact window sums from prefix sums.
     pre_e_[0] = pre_si_[0] = pre_sq_[0] = 0.0;
@@ -702,7 +726,6 @@ class GoldcodeDetector final : public Detector {
     const double min_e = std::max(1e-20, 1e-3 * ch.level);
     const double hop_mean_e = (pre_e_[hop_ + M_ - 1] - pre_e_[0]) / static_cast<double>(hop_ + M_ - 1) * m;
     ch.level = ch.level == 0.0 ? hop_mean_e : 0.8 * ch.level + 0.2 * hop_mean_e;
-    const std::size_t nb = nfft_ / 2 + 1;
     for (std::size_t d = 0; d < hop_; ++d) {
       const double si = pre_si_[d + M_] - pre_si_[d], sq = pre_sq_[d + M_] - pre_sq_[d];
       const double e = pre_e_[d + M_] - pre_e_[d] - (si * si + sq * sq) / m;
@@ -717,40 +740,12 @@ class GoldcodeDetector final : public Detector {
         continue;
       }
       // ρ per lag: the best of the code's Doppler versions. The window energy does not depend on the
-      // version: 1/(e·n²) once per lag, then ρ² = |z|²·w / energy per version (squares compared,
-      // one square root per lag). Plain float arithmetic (std::complex's operator* carries NaN
-      // checks that keep the loops from vectorising).
-      std::fill(r2f_.begin(), r2f_.end(), 0.0f);
-      std::fill(dop, dop + hop_, static_cast<std::uint16_t>(d0_));
-      const float* xi = reinterpret_cast<const float*>(spec_xi_.data());
-      const float* xq = reinterpret_cast<const float*>(spec_xq_.data());
-      float* w1 = reinterpret_cast<float*>(spec_w_.data());
-      float* w2 = reinterpret_cast<float*>(spec_w2_.data());
-      for (std::size_t f = 0; f < nd_; ++f) {
-        const CodeTemplate& t = tpl(u, f);
-        const float* ti = reinterpret_cast<const float*>(t.spec_i.data());
-        const float* tq = reinterpret_cast<const float*>(t.spec_q.data());
-        // Re = IFFT(XI·conj(A) + XQ·conj(B)), Im = IFFT(XQ·conj(A) − XI·conj(B)).
-        for (std::size_t b = 0; b < 2 * nb; b += 2) {
-          const float ar = xi[b], ai = xi[b + 1], qr = xq[b], qi = xq[b + 1];
-          const float pr = ti[b], pi = ti[b + 1], sr = tq[b], sim = tq[b + 1];
-          w1[b] = ar * pr + ai * pi + qr * sr + qi * sim;
-          w1[b + 1] = ai * pr - ar * pi + qi * sr - qr * sim;
-          w2[b] = qr * pr + qi * pi - ar * sr - ai * sim;
-          w2[b + 1] = qi * pr - qr * pi - ai * sr + ar * sim;
-        }
-        fft_->inverse(spec_w_.data(), re_.data());
-        fft_->inverse(spec_w2_.data(), im_.data());
-        const float inv_t = t.energy > 1e-30 ? static_cast<float>(1.0 / t.energy) : 0.0f;
-        const std::uint16_t fi = static_cast<std::uint16_t>(f);
-        for (std::size_t d = 0; d < hop_; ++d) wf_[d] = static_cast<float>(win_w_[d]) * inv_t;
-        for (std::size_t d = 0; d < hop_; ++d) {
-          const float cr = re_[d], ci = im_[d];
-          const float r2 = (cr * cr + ci * ci) * wf_[d];
-          const bool gt = r2 > r2f_[d];
-          r2f_[d] = gt ? r2 : r2f_[d];
-          dop[d] = gt ? fi : dop[d];
-        }
+      // version: ρ² = |z|² / energy per version, maximised over the versions, times 1/(e·n²) once per
+      // lag (squares compared, one square root per lag).
+      coarse_max(u, hop_);
+      for (std::size_t d = 0; d < hop_; ++d) {
+        r2f_[d] *= static_cast<float>(win_w_[d]);
+        dop[d] = win_w_[d] > 0.0 ? static_cast<std::uint16_t>(dopf_[d]) : static_cast<std::uint16_t>(d0_);
       }
       double sum_r2 = 0.0;
       for (std::size_t d = 0; d < hop_; ++d) {
@@ -775,6 +770,27 @@ class GoldcodeDetector final : public Detector {
     std::memmove(ch.xq.data(), ch.xq.data() + hop_, (nfft_ - hop_) * sizeof(float));
     ch.fill = nfft_ - hop_;
     ch.base += static_cast<std::int64_t>(hop_);
+  }
+
+  // The Doppler search of code u over the first `lags` lags of the hop: r2f_[d] = max over the code's
+  // Doppler versions f of |z_f(d)|² / energy_f, dopf_[d] = that f. z_f = IDFT(X · conj(C_f)), X the
+  // complex spectrum of the window (spec_xr_/spec_xi2_, split), C_f the version's complex template
+  // spectrum (stored conjugated and split): one complex multiply per bin and one complex inverse FFT
+  // per version (kernels in locus/dsp/simd.hpp).
+  void coarse_max(std::size_t u, std::size_t lags) noexcept {
+    std::fill(r2f_.begin(), r2f_.begin() + static_cast<std::ptrdiff_t>(lags), 0.0f);
+    std::fill(dopf_.begin(), dopf_.begin() + static_cast<std::ptrdiff_t>(lags), static_cast<float>(d0_));
+    const float* xr = spec_xr_.data();
+    const float* xm = spec_xm_.data();
+    float* r2 = r2f_.data();
+    float* df = dopf_.data();
+    for (std::size_t f = 0; f < nd_; ++f) {
+      const CodeTemplate& t = tpl(u, f);
+      simd::cmul_split(xr, xm, t.cc_re.data(), t.cc_im.data(), reinterpret_cast<float*>(cfft_->input()), nfft_);
+      cfft_->inverse();
+      const float inv_t = t.energy > 1e-30 ? static_cast<float>(1.0 / t.energy) : 0.0f;
+      simd::max_norm(reinterpret_cast<const float*>(cfft_->output()), inv_t, static_cast<float>(f), r2, df, lags);
+    }
   }
 
   void step_lag(std::uint32_t c, std::size_t u, std::int64_t lag, double rho, double rho_prev, double noise,
@@ -840,59 +856,14 @@ class GoldcodeDetector final : public Detector {
     for (std::size_t u = 0; u < ncodes_; ++u) emit_pending(c, u, out);
   }
 
-  // Kernels of the refinement, on GCC/Clang vector extensions (SSE on x86-64, NEON on the Pi; no
-  // -ffast-math needed): 8 float lanes per accumulator, the 8 partial sums added in double (relative
-  // error ~1e-6, plenty for a peak search and least-squares amplitudes).
-  static v4f load4(const float* p) noexcept {
-    v4f v;
-    std::memcpy(&v, p, sizeof v);
-    return v;
-  }
-  static void store4(float* p, v4f v) noexcept { std::memcpy(p, &v, sizeof v); }
-  static double hsum(v4f a, v4f b) noexcept {
-    return (static_cast<double>(a[0]) + a[1] + a[2] + a[3]) + (static_cast<double>(b[0]) + b[1] + b[2] + b[3]);
-  }
-
-  // Σ y·a and Σ y·b over n samples.
+  // Kernels of the refinement: locus/dsp/simd.hpp (8 float lanes per accumulator, the partial sums
+  // added in double: relative error ~1e-6, plenty for a peak search and least-squares amplitudes).
+  static double energy(const float* y, std::size_t n) noexcept { return simd::energy(y, n); }
   static void dot2(const float* y, const float* a, const float* b, std::size_t n, double& ra, double& rb) noexcept {
-    v4f sa0 = {}, sa1 = {}, sb0 = {}, sb1 = {};
-    std::size_t j = 0;
-    for (; j + 8 <= n; j += 8) {
-      const v4f y0 = load4(y + j), y1 = load4(y + j + 4);
-      sa0 += y0 * load4(a + j);
-      sa1 += y1 * load4(a + j + 4);
-      sb0 += y0 * load4(b + j);
-      sb1 += y1 * load4(b + j + 4);
-    }
-    double da = hsum(sa0, sa1), db = hsum(sb0, sb1);
-    for (; j < n; ++j) {
-      da += static_cast<double>(y[j]) * a[j];
-      db += static_cast<double>(y[j]) * b[j];
-    }
-    ra = da;
-    rb = db;
+    simd::dot2(y, a, b, n, ra, rb);
   }
-
-  // Σ y² over n samples.
-  static double energy(const float* y, std::size_t n) noexcept {
-    v4f s0 = {}, s1 = {};
-    std::size_t j = 0;
-    for (; j + 8 <= n; j += 8) {
-      const v4f y0 = load4(y + j), y1 = load4(y + j + 4);
-      s0 += y0 * y0;
-      s1 += y1 * y1;
-    }
-    double e = hsum(s0, s1);
-    for (; j < n; ++j) e += static_cast<double>(y[j]) * y[j];
-    return e;
-  }
-
-  // y[j] −= ci·a[j] + cq·b[j], j < n.
   static void sub2(float* y, const float* a, const float* b, float ci, float cq, std::size_t n) noexcept {
-    const v4f vi = {ci, ci, ci, ci}, vq = {cq, cq, cq, cq};
-    std::size_t j = 0;
-    for (; j + 4 <= n; j += 4) store4(y + j, load4(y + j) - (vi * load4(a + j) + vq * load4(b + j)));
-    for (; j < n; ++j) y[j] -= ci * a[j] + cq * b[j];
+    simd::sub2(y, a, b, ci, cq, n);
   }
 
   // Re-estimates one member's arrival (±half frames around its estimate) and in-phase/quadrature
@@ -1169,59 +1140,82 @@ class GoldcodeDetector final : public Detector {
       const double zi = mp_zi_[static_cast<std::size_t>(j)], zq = mp_zq_[static_cast<std::size_t>(j)];
       best1 = std::max(best1, (eqq * zi * zi - 2.0 * eiq * zi * zq + eii * zq * zq) / det1);
     }
-    // Two paths: 4x4 normal equations per (τ1, δ), Cholesky.
-    auto explain2 = [&](std::int64_t j, std::size_t d, double& p1, double& p2) noexcept {
+    // Two paths: 4x4 normal equations per (τ1, δ). The Gram matrix G depends on δ only: its inverse
+    // once per δ (Cholesky, positive-definiteness checked on the way), then per τ1 the amplitudes
+    // c = G⁻¹b and the explained energy bᵀc (no division in the τ1 loop).
+    struct Gram4 {
+      double inv[4][4] = {};
+      bool ok = false;
+    };
+    auto factor = [&](std::size_t d) noexcept {
+      Gram4 f;
       const double* gd = g + 4 * d;
-      double G[4][4] = {{eii, eiq, gd[0], gd[1]}, {eiq, eqq, gd[2], gd[3]}, {gd[0], gd[2], eii, eiq}, {gd[1], gd[3], eiq, eqq}};
-      const double b[4] = {mp_zi_[static_cast<std::size_t>(j)], mp_zq_[static_cast<std::size_t>(j)],
-                           mp_zi_[static_cast<std::size_t>(j) + d], mp_zq_[static_cast<std::size_t>(j) + d]};
-      double L[4][4] = {};
+      const double G[4][4] = {{eii, eiq, gd[0], gd[1]}, {eiq, eqq, gd[2], gd[3]}, {gd[0], gd[2], eii, eiq}, {gd[1], gd[3], eiq, eqq}};
+      double L[4][4] = {}, Li[4][4] = {};
       for (int i = 0; i < 4; ++i)
         for (int k = 0; k <= i; ++k) {
           double sum = G[i][k];
           for (int m = 0; m < k; ++m) sum -= L[i][m] * L[k][m];
           if (i == k) {
-            if (!(sum > 1e-9 * eii)) return -1.0;
+            if (!(sum > 1e-9 * eii)) return f;
             L[i][i] = std::sqrt(sum);
           } else {
             L[i][k] = sum / L[k][k];
           }
         }
-      double y[4], c[4];
-      for (int i = 0; i < 4; ++i) {
-        double sum = b[i];
-        for (int m = 0; m < i; ++m) sum -= L[i][m] * y[m];
-        y[i] = sum / L[i][i];
+      for (int k = 0; k < 4; ++k) {  // L⁻¹ (lower triangular), column by column
+        Li[k][k] = 1.0 / L[k][k];
+        for (int i = k + 1; i < 4; ++i) {
+          double sum = 0.0;
+          for (int m = k; m < i; ++m) sum -= L[i][m] * Li[m][k];
+          Li[i][k] = sum / L[i][i];
+        }
       }
-      for (int i = 3; i >= 0; --i) {
-        double sum = y[i];
-        for (int m = i + 1; m < 4; ++m) sum -= L[m][i] * c[m];
-        c[i] = sum / L[i][i];
-      }
+      for (int r = 0; r < 4; ++r)  // G⁻¹ = L⁻ᵀ L⁻¹
+        for (int q = 0; q < 4; ++q) {
+          double sum = 0.0;
+          for (int i = std::max(r, q); i < 4; ++i) sum += Li[i][r] * Li[i][q];
+          f.inv[r][q] = sum;
+        }
+      f.ok = true;
+      return f;
+    };
+    auto explain2 = [&](const Gram4& f, std::int64_t j, std::size_t d, double& p1, double& p2) noexcept {
+      if (!f.ok) return -1.0;
+      const double b[4] = {mp_zi_[static_cast<std::size_t>(j)], mp_zq_[static_cast<std::size_t>(j)],
+                           mp_zi_[static_cast<std::size_t>(j) + d], mp_zq_[static_cast<std::size_t>(j) + d]};
+      double c[4];
+      for (int r = 0; r < 4; ++r) c[r] = f.inv[r][0] * b[0] + f.inv[r][1] * b[1] + f.inv[r][2] * b[2] + f.inv[r][3] * b[3];
       p1 = c[0] * c[0] + c[1] * c[1];
       p2 = c[2] * c[2] + c[3] * c[3];
-      return y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3];
+      return b[0] * c[0] + b[1] * c[1] + b[2] * c[2] + b[3] * c[3];
     };
     double best2 = -1.0, bp1 = 0.0, bp2 = 0.0;
     std::int64_t bj = -1;
     std::size_t bd = 0;
-    for (std::int64_t j = 0; j < nl; ++j)
-      for (std::size_t d = mp_min_; d <= mp_max_; ++d) {
+    Gram4 fbest;
+    for (std::size_t d = mp_min_; d <= mp_max_; ++d) {
+      const Gram4 f = factor(d);
+      if (!f.ok) continue;
+      for (std::int64_t j = 0; j < nl; ++j) {
         double p1, p2;
-        const double e = explain2(j, d, p1, p2);
-        if (e > best2) {
+        const double e = explain2(f, j, d, p1, p2);
+        // The first maximum in (τ1, δ) order, as a τ1-major scan finds it.
+        if (e > best2 || (e == best2 && bj >= 0 && (j < bj || (j == bj && d < bd)))) {
           best2 = e;
           bj = j;
           bd = d;
           bp1 = p1;
           bp2 = p2;
+          fbest = f;
         }
       }
+    }
     if (bj < 0 || !(best2 > (1.0 + mp_gain_) * best1) || !(bp1 >= 0.5 * bp2)) return frame;
     double off = 0.0;
     if (bj > 0 && bj + 1 < nl) {
       double q1, q2;
-      const double em = explain2(bj - 1, bd, q1, q2), ep = explain2(bj + 1, bd, q1, q2);
+      const double em = explain2(fbest, bj - 1, bd, q1, q2), ep = explain2(fbest, bj + 1, bd, q1, q2);
       const double den = em - 2.0 * best2 + ep;
       if (em >= 0.0 && ep >= 0.0 && den < 0.0) off = std::clamp(0.5 * (em - ep) / den, -0.5, 0.5);
     }
@@ -1341,10 +1335,13 @@ class GoldcodeDetector final : public Detector {
   std::size_t ring_size_ = 0, ring_mask_ = 0;
   std::unique_ptr<RealFft> fft_;
   std::vector<Channel> chans_;
-  std::vector<float> bp_, mi_, mq_, di_, dq_, re_, im_;
-  std::vector<cf> spec_xi_, spec_xq_, spec_w_, spec_w2_;
+  std::vector<float> bp_, mi_, mq_, di_, dq_;
+  std::vector<cf> spec_xi_, spec_xq_;
+  std::vector<float> spec_xr_, spec_xm_;  // the window's complex spectrum X (split)
+  std::unique_ptr<ComplexFft> cfft_;      // the coarse search's inverse transform (nfft_)
+  std::vector<float> dopf_;               // per lag of a hop: the best Doppler version (float)
   std::vector<std::uint8_t> allow_;  // per lag of a hop: inside a round window (round_window_s)
-  std::vector<float> r2f_, wf_;      // per lag of a hop: best ρ² over the Doppler versions, weights
+  std::vector<float> r2f_;           // per lag of a hop: best ρ² over the Doppler versions
   bool gate_ = false;                // round_window_s set
   double gate_before_ = 0.0, gate_after_ = 0.0;  // frames
   std::vector<double> rho_, noise_, pre_e_, pre_si_, pre_sq_;

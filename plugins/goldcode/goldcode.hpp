@@ -10,7 +10,10 @@
 //   3. correlation with each user's code: the template is the user's signal (dsp::render_signal)
 //      passed through the same steps 1-2 offline, so filter distortion is matched; complex
 //      correlation by FFT overlap-save at the decimated rate (|·| is independent of the unknown
-//      carrier phase of the propagation delay);
+//      carrier phase of the propagation delay); with the Doppler search every code has one template
+//      per Doppler version (time-compressed, `doppler_*`), the window's complex spectrum is formed
+//      once per hop and each version costs one complex multiply per bin plus one complex inverse FFT
+//      (vector kernels in locus/dsp/simd.hpp); ρ per lag is the best version's;
 //   4. Pearson normalisation: ρ(d) = |Σ_k (x[d+k] − x̄)·conj(T[k] − T̄)| / sqrt(Σ|x − x̄|² · Σ|T − T̄|²),
 //      the window sums from exact prefix sums; 0..1, insensitive to level and to the other users;
 //   5. candidates per code: runs of lags with ρ ≥ min_pearson_coarse and ρ²/mean ρ² ≥ min_snr_db;

@@ -85,8 +85,9 @@ void run(benchmark::State& state, const locus_plugin_descriptor* desc, const loc
 // A Montage device (issue 15): its own code at +50 dB through the own-emission canceller, three other
 // users walking (±1.2 m/s: Doppler), one round per second; codes from the scene, default parameters
 // (Doppler search ±150 Hz in 5 Hz steps, two-path first-arrival model). Per channel.
-// gate: with the round gate of config/montage-detect.yaml (round_window_s [0.16, 0.22] s).
-void montage_device(benchmark::State& state, bool gate) {
+// gate: with the round gate of config/montage-detect.yaml (round_window_s [0.16, 0.22] s); doppler:
+// false = `doppler_max_hz: 0` (one version per code: what the Doppler search costs, same run).
+void montage_device(benchmark::State& state, bool gate, bool doppler = true) {
   locus::test::TestHost host;
   locus::FftwPlanner fftw({}, true);
   std::vector<locus::SignalSpec> specs(4);
@@ -113,6 +114,7 @@ void montage_device(benchmark::State& state, bool gate) {
   locus::Params p = locus::Params::defaults(locus::plugins::goldcode::schema());
   p.set("from_scene", true);
   if (gate) p.set("round_window_s", std::vector<double>{0.16, 0.22});
+  if (!doppler) p.set("doppler_max_hz", 0.0);
   d->configure(info, p, ctx);
   std::mt19937 rng(3);
   std::normal_distribution<float> g0(0.0f, 1e-4f);
@@ -156,12 +158,14 @@ void montage_device(benchmark::State& state, bool gate) {
 
 void BM_GoldcodeMontageDevice(benchmark::State& s) { montage_device(s, false); }
 void BM_GoldcodeMontageDeviceRoundGate(benchmark::State& s) { montage_device(s, true); }
+void BM_GoldcodeMontageDeviceNoDoppler(benchmark::State& s) { montage_device(s, false, false); }
 void BM_Goldcode4Codes(benchmark::State& s) { run(s, locus::plugins::goldcode::descriptor(), locus::plugins::goldcode::schema(), true); }
 void BM_Multitone10Tones(benchmark::State& s) { run(s, locus::plugins::multitone::descriptor(), locus::plugins::multitone::schema(), false); }
 
 BENCHMARK(BM_Goldcode4Codes)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK(BM_GoldcodeMontageDevice)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK(BM_GoldcodeMontageDeviceRoundGate)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+BENCHMARK(BM_GoldcodeMontageDeviceNoDoppler)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK(BM_Multitone10Tones)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "locus/dsp/peak.hpp"
+#include "locus/dsp/simd.hpp"
 #include "locus/fft.hpp"
 
 namespace locus::dsp {
@@ -33,6 +34,8 @@ void EmissionCanceller::configure(const std::vector<float>& h, FftPlanner& plann
   taps_ = opt_.taps_before + opt_.taps_after + 1;
   padded_ = len_ + taps_ - 1;
   h_.assign(h.begin(), h.end());
+  hf_.assign(h.begin(), h.end());
+  wd_.assign(len_ + taps_ - 1, 0.0);
   energy_ = 0.0;
   for (double v : h_) energy_ += v * v;
   if (!(energy_ > 0.0) || !std::isfinite(energy_))
@@ -72,6 +75,9 @@ void EmissionCanceller::configure(const std::vector<float>& h, FftPlanner& plann
       }
     }
   }
+  cholt_.assign(taps_ * taps_, 0.0);
+  for (std::size_t i = 0; i < taps_; ++i)
+    for (std::size_t j = 0; j <= i; ++j) cholt_[j * taps_ + i] = chol_[i * taps_ + j];
   b_.assign(taps_, 0.0);
   g_.assign(taps_, 0.0);
   threshold_ = std::pow(10.0, opt_.threshold_db / 10.0);
@@ -98,6 +104,21 @@ std::size_t EmissionCanceller::flush(std::size_t ch) noexcept {
 
 void EmissionCanceller::reset(std::size_t ch, std::uint64_t next_index) noexcept { corr_.reset(ch, next_index); }
 
+// sorted[n/2] >= v over x[0], x[stride], ... (n values): at least n - n/2 of them are >= v. One pass.
+bool EmissionCanceller::median_at_least(const float* x, std::size_t n, std::size_t stride, float v) noexcept {
+  std::size_t c = 0;
+  for (std::size_t i = 0; i < n; ++i) c += x[i * stride] >= v ? 1 : 0;
+  return c >= n - n / 2;
+}
+
+// sorted[n/2] of x[0], x[stride], ... (n values), selected in sorted_.
+double EmissionCanceller::median(const float* x, std::size_t n, std::size_t stride) noexcept {
+  for (std::size_t i = 0; i < n; ++i) sorted_[i] = x[i * stride];
+  const auto mid = sorted_.begin() + static_cast<std::ptrdiff_t>(n / 2);
+  std::nth_element(sorted_.begin(), mid, sorted_.begin() + static_cast<std::ptrdiff_t>(n));
+  return static_cast<double>(*mid);
+}
+
 void EmissionCanceller::search(std::size_t ch, std::size_t lags) noexcept {
   float* pw = pow_.data();
   // Decimated baseband screen first (nearly every window holds no emission).
@@ -110,26 +131,43 @@ void EmissionCanceller::search(std::size_t ch, std::size_t lags) noexcept {
     for (std::size_t m = 0; m < nm; ++m) {
       pw[m] = std::norm(z[m]);
       pmax = std::max(pmax, pw[m]);
-      sorted_[m] = pw[m];
     }
-    const auto mid = sorted_.begin() + static_cast<std::ptrdiff_t>(nm / 2);
-    std::nth_element(sorted_.begin(), mid, sorted_.begin() + static_cast<std::ptrdiff_t>(nm));
-    const double noise = std::max(static_cast<double>(*mid) / std::numbers::ln2, std::numeric_limits<double>::min());
     // -3 dB margin below the worst between-lag loss: a peak between decimated lags is not missed.
-    if (pmax <= 0.5 * corr_.baseband_peak_ratio(0) * threshold_ * noise) return;
+    const double margin = 0.5 * corr_.baseband_peak_ratio(0) * threshold_;
+    auto quiet = [&](double median) {
+      return pmax <= margin * std::max(median / std::numbers::ln2, std::numeric_limits<double>::min());
+    };
+    // `quiet` grows with the median: when it holds at v and the median is >= v (a count), it holds at
+    // the median, which then need not be selected (the usual window: no emission).
+    // Likewise below: not quiet at lo and the median <= lo (a window with an emission).
+    const float v = static_cast<float>(static_cast<double>(pmax) * std::numbers::ln2 / margin);
+    const float lo = v * 0.9999f;
+    if (std::isfinite(v) && quiet(v) && median_at_least(pw, nm, 1, v)) return;
+    const bool loud = std::isfinite(v) && !quiet(lo) && !median_at_least(pw, nm, 1, std::nextafter(lo, INFINITY));
+    if (!loud && quiet(median(pw, nm, 1))) return;
   }
   corr_.correlate(0);
   const float* re = corr_.real(0);
   const float* im = corr_.imag(0);
-  std::size_t m = 0;
-  for (std::size_t i = 0; i < lags; ++i) {
-    pw[i] = re[i] * re[i] + im[i] * im[i];
-    if (i % 4 == 0) sorted_[m++] = pw[i];
-  }
-  const auto mid = sorted_.begin() + static_cast<std::ptrdiff_t>(m / 2);
-  std::nth_element(sorted_.begin(), mid, sorted_.begin() + static_cast<std::ptrdiff_t>(m));
-  const double noise = std::max(static_cast<double>(*mid) / std::numbers::ln2, std::numeric_limits<double>::min());
-  const double thr = noise * threshold_;
+  for (std::size_t i = 0; i < lags; ++i) pw[i] = re[i] * re[i] + im[i] * im[i];
+  // Noise power: median of every 4th lag / ln 2. A candidate must exceed threshold_ x noise; that
+  // decision falls with the median, so a count against the boundary value usually settles it without
+  // selecting the median (selected once, when a count cannot tell).
+  const std::size_t m = (lags + 3) / 4;
+  double exact_median = -1.0;
+  auto above = [&](float p) {
+    auto passes = [&](double median) {
+      return p > std::max(median / std::numbers::ln2, std::numeric_limits<double>::min()) * threshold_;
+    };
+    if (exact_median < 0.0) {
+      const float b = static_cast<float>(static_cast<double>(p) * std::numbers::ln2 / threshold_);
+      const float lo = b * 0.9999f, hi = b * 1.0001f;
+      if (std::isfinite(b) && passes(lo) && !median_at_least(pw, m, 4, std::nextafter(lo, INFINITY))) return true;
+      if (std::isfinite(b) && !passes(hi) && median_at_least(pw, m, 4, hi)) return false;
+      exact_median = median(pw, m, 4);
+    }
+    return passes(exact_median);
+  };
   std::fill(masked_.begin(), masked_.begin() + static_cast<std::ptrdiff_t>(lags), std::uint8_t{0});
   const float* x = corr_.samples(ch);
   for (std::size_t round = 0; round < opt_.max_per_window; ++round) {
@@ -140,7 +178,7 @@ void EmissionCanceller::search(std::size_t ch, std::size_t lags) noexcept {
         pbest = pw[i];
         best = i;
       }
-    if (best == lags || !(pbest > thr)) break;
+    if (best == lags || !above(pbest)) break;
     // Correlation values within one padded template of this lag change with the subtraction (or
     // belong to the same event): never candidates again in this window.
     const std::size_t lo = best >= padded_ ? best - padded_ + 1 : 0;
@@ -165,31 +203,21 @@ void EmissionCanceller::search(std::size_t ch, std::size_t lags) noexcept {
 
 void EmissionCanceller::fit_and_subtract(std::size_t ch, std::size_t i0, double pz, double coefficient) noexcept {
   float* w = corr_.samples_mutable(ch) + i0;  // the fit support [i0, i0 + padded)
-  // b_t = sum_j w[t + j] h[j]: correlation of the support with h shifted by t - P.
+  // b_t = sum_j w[t + j] h[j]: correlation of the support with h shifted by t - P, in double (an
+  // error in b lands in R's weak, out-of-band directions amplified by 1 / lambda), on a double copy
+  // of the support with independent lanes (simd::dot_f64: taps x L multiply-adds, the fit's cost).
   double e0 = 0.0;
-  for (std::size_t j = 0; j < padded_; ++j) e0 += static_cast<double>(w[j]) * w[j];
-  for (std::size_t t = 0; t < taps_; ++t) {
-    double s = 0.0;
-    const float* ws = w + t;
-    for (std::size_t j = 0; j < len_; ++j) s += ws[j] * h_[j];
-    b_[t] = s;
+  for (std::size_t j = 0; j < padded_; ++j) {
+    wd_[j] = w[j];
+    e0 += wd_[j] * wd_[j];
   }
-  // Solve L y = b, then L^T g = y.
-  for (std::size_t i = 0; i < taps_; ++i) {
-    double s = b_[i];
-    for (std::size_t k = 0; k < i; ++k) s -= chol_[i * taps_ + k] * g_[k];
-    g_[i] = s / chol_[i * taps_ + i];
-  }
-  for (std::size_t ii = taps_; ii-- > 0;) {
-    double s = g_[ii];
-    for (std::size_t k = ii + 1; k < taps_; ++k) s -= chol_[k * taps_ + ii] * g_[k];
-    g_[ii] = s / chol_[ii * taps_ + ii];
-  }
-  for (std::size_t t = 0; t < taps_; ++t) {
-    const float gt = static_cast<float>(g_[t]);
-    float* ws = w + t;
-    for (std::size_t j = 0; j < len_; ++j) ws[j] -= gt * static_cast<float>(h_[j]);
-  }
+  for (std::size_t t = 0; t < taps_; ++t) b_[t] = simd::dot_f64(wd_.data() + t, h_.data(), len_);
+  // Solve L y = b, then L^T g = y (rows of L and of L^T are contiguous: vector dot products).
+  for (std::size_t i = 0; i < taps_; ++i)
+    g_[i] = (b_[i] - simd::dot_f64(chol_.data() + i * taps_, g_.data(), i)) / chol_[i * taps_ + i];
+  for (std::size_t ii = taps_; ii-- > 0;)
+    g_[ii] = (g_[ii] - simd::dot_f64(cholt_.data() + ii * taps_ + ii + 1, g_.data() + ii + 1, taps_ - ii - 1)) / chol_[ii * taps_ + ii];
+  for (std::size_t t = 0; t < taps_; ++t) simd::sub1(w + t, hf_.data(), static_cast<float>(g_[t]), len_);
   double e1 = 0.0;
   for (std::size_t j = 0; j < padded_; ++j) e1 += static_cast<double>(w[j]) * w[j];
 

@@ -120,6 +120,8 @@ class EmissionCanceller {
 
  private:
   void search(std::size_t ch, std::size_t lags) noexcept;
+  static bool median_at_least(const float* x, std::size_t n, std::size_t stride, float v) noexcept;
+  double median(const float* x, std::size_t n, std::size_t stride) noexcept;
   void fit_and_subtract(std::size_t ch, std::size_t i0, double pz, double coefficient) noexcept;
 
   Options opt_;
@@ -128,7 +130,10 @@ class EmissionCanceller {
   double energy_ = 0.0;
   double threshold_ = 100.0, min_rho2_ = 0.25;
   std::vector<double> h_;         // the template
+  std::vector<float> hf_;         // the template in float (the subtraction)
+  std::vector<double> wd_;        // the fit support in double (padded length)
   std::vector<double> chol_;      // taps x taps lower Cholesky factor of R + lambda r0 I
+  std::vector<double> cholt_;     // its transpose (the back substitution reads rows)
   std::vector<double> b_, g_;     // taps
   std::vector<float> pow_, sorted_;
   std::vector<std::uint8_t> masked_;  // per lag of a window: not a candidate
