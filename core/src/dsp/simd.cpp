@@ -5,11 +5,15 @@
 
 #include <cstring>
 
-// The 8-lane helpers below are always inlined into the clones: their by-value AVX-sized vectors never
-// cross a call (GCC warns about that ABI regardless).
+// The 8-lane helpers below are always inlined into the clones (LOCUS_SIMD_INLINE, also at -O0): their
+// by-value AVX-sized vectors must never cross a call, whose ABI differs between the AVX2 clone and the
+// baseline helper (a Debug build that called them read garbage: ASan, Goldcode tests). GCC warns about
+// that ABI regardless.
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic ignored "-Wpsabi"
 #endif
+
+#define LOCUS_SIMD_INLINE inline __attribute__((always_inline))
 
 namespace locus::dsp::simd {
 
@@ -21,16 +25,16 @@ using v4d = double __attribute__((vector_size(32)));
 
 // Unaligned vector load / store (memcpy: no alignment assumed, one instruction once inlined).
 template <class V, class T>
-inline V load(const T* p) noexcept {
+LOCUS_SIMD_INLINE V load(const T* p) noexcept {
   V v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
-inline v8f load8(const float* p) noexcept { return load<v8f>(p); }
-inline v4d load4d(const double* p) noexcept { return load<v4d>(p); }
-inline void store8(float* p, v8f v) noexcept { std::memcpy(p, &v, sizeof v); }
+LOCUS_SIMD_INLINE v8f load8(const float* p) noexcept { return load<v8f>(p); }
+LOCUS_SIMD_INLINE v4d load4d(const double* p) noexcept { return load<v4d>(p); }
+LOCUS_SIMD_INLINE void store8(float* p, v8f v) noexcept { std::memcpy(p, &v, sizeof v); }
 // The 8 lanes added in double, lanes 0-3 then 4-7 (the order of the former two 4-lane accumulators).
-inline double hsum8(v8f a) noexcept {
+LOCUS_SIMD_INLINE double hsum8(v8f a) noexcept {
   return (static_cast<double>(a[0]) + a[1] + a[2] + a[3]) + (static_cast<double>(a[4]) + a[5] + a[6] + a[7]);
 }
 
