@@ -40,7 +40,11 @@ LOCUS_SIMD_INLINE double hsum8(v8f a) noexcept {
 
 }  // namespace
 
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && !defined(LOCUS_NO_TARGET_CLONES)
+// Not in sanitizer and fuzzer builds (LOCUS_SANITIZED): target_clones dispatch through an ifunc
+// resolver that the dynamic loader runs before any sanitizer runtime is up, and TSan's instrumented
+// resolver crashed every test binary at load (./run sanitize tsan). The baseline clone gives the same bits.
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && !defined(LOCUS_NO_TARGET_CLONES) && \
+    !defined(LOCUS_SANITIZED)
 #define LOCUS_SIMD_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define LOCUS_SIMD_CLONES
