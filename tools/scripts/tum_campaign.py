@@ -14,6 +14,8 @@ plane only, docs/events.md): then the error's component along device 1's true ve
 usage: tum_campaign.py --locus BIN [--seeds 1-20] [--options overlap=1,track=static]
                        [--difficulty normal] [--config config/tum.yaml] [--work /tmp/tum-campaign]
                        [--scene DIR]... [--json OUT]
+       tum_campaign.py --coverage SCENE ESTIMATES --min-within1 F --min-within2 F
+                       (the scenario test's check: exit 1 when the coverage of one replay is below)
 python3 with python3-yaml. Prints a markdown table.
 """
 import argparse, bisect, csv, json, math, os, subprocess, sys
@@ -87,9 +89,19 @@ def score(locus, scene, config, work):
     times = [s['t_s'] for s in p['details']['snapshots']]
     span = (max(times) - min(times)) if len(times) > 1 else float('nan')
     fixes = (len(times) - 1) / span if span and span > 0 else float('nan')
-    # std coverage: each estimate's error in device 1's body frame (truth.csv, truth clocks) against
-    # its std_m. A formation and its mirror image fit flat devices equally (docs/tum.md): the error is
-    # taken to the nearer of the two.
+    within1, within2, n, flagged = coverage(scene, est)
+    s = p['summary']
+    return {'scene': name, 'snapshots': snaps, 'median': pct(snaps, 0.5), 'p90': pct(snaps, 0.9),
+            'located': f"{s.get('targets_located')}/{s.get('targets_expected')}", 'fixes_per_s': fixes,
+            'cov1': within1 / n if n else float('nan'), 'cov2': within2 / n if n else float('nan'),
+            'cov_counts': (within1, within2, n), 'height_unobserved': flagged}
+
+
+def coverage(scene, est):
+    """std coverage: each estimate's error in device 1's body frame (truth.csv, truth clocks) against
+    its std_m. A formation and its mirror image fit flat devices equally (docs/tum.md): the 3D error is
+    taken to the nearer of the two; a `height_unobserved` estimate's error leaves out the vertical.
+    Returns (within 1 std, within 2 std, estimates, estimates flagged height_unobserved)."""
     truth = Truth(scene)
     within1 = within2 = n = flagged = 0
     with open(est) as f:
@@ -111,14 +123,29 @@ def score(locus, scene, config, work):
             n += 1
             within1 += err <= e['std_m']
             within2 += err <= 2 * e['std_m']
-    s = p['summary']
-    return {'scene': name, 'snapshots': snaps, 'median': pct(snaps, 0.5), 'p90': pct(snaps, 0.9),
-            'located': f"{s.get('targets_located')}/{s.get('targets_expected')}", 'fixes_per_s': fixes,
-            'cov1': within1 / n if n else float('nan'), 'cov2': within2 / n if n else float('nan'),
-            'cov_counts': (within1, within2, n), 'height_unobserved': flagged}
+    return within1, within2, n, flagged
+
+
+def check_coverage(scene, est, min1, min2):
+    w1, w2, n, flagged = coverage(scene, est)
+    if n == 0:
+        print(f"tum_campaign: {est}: no estimate with std_m to score", file=sys.stderr)
+        return 1
+    msg = (f"std coverage {scene}: {100 * w1 / n:.0f} % within 1 std (min {100 * min1:.0f} %), "
+           f"{100 * w2 / n:.0f} % within 2 std (min {100 * min2:.0f} %), {n} estimates, {flagged} height_unobserved")
+    ok = w1 / n >= min1 and w2 / n >= min2
+    print(("OK: " if ok else "FAIL: ") + msg)
+    return 0 if ok else 1
 
 
 def main():
+    if '--coverage' in sys.argv:
+        cp = argparse.ArgumentParser()
+        cp.add_argument('--coverage', nargs=2, metavar=('SCENE', 'ESTIMATES'), required=True)
+        cp.add_argument('--min-within1', type=float, required=True)
+        cp.add_argument('--min-within2', type=float, required=True)
+        c = cp.parse_args()
+        sys.exit(check_coverage(c.coverage[0], c.coverage[1], c.min_within1, c.min_within2))
     ap = argparse.ArgumentParser()
     ap.add_argument('--locus', required=True)
     ap.add_argument('--seeds', default='')

@@ -2,6 +2,7 @@
 // through the single-exchange solver, the clock pairing, the window solve and the particle filter.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <random>
@@ -105,6 +106,40 @@ TEST(TumNetwork, StaticDevicesOnATable) {
       const double e = (est[poses[i].id] - est[poses[j].id]).norm();
       EXPECT_NEAR(e, truth, 0.03) << poses[i].id << "-" << poses[j].id;
     }
+}
+
+// Flat two-mic devices at different heights, nothing moving: the data add almost nothing to the height
+// prior, and the placement must say so (docs/tum.md, "Uncertainty"); its covariance's horizontal part,
+// which then carries the sigma points' second-order term, must cover the horizontal error.
+TEST(TumNetwork, UnobservedHeightIsSaidAndCovered) {
+  const auto poses = layout(1.2, false);
+  tum::SolverConfig cfg;
+  cfg.speed_of_sound_mps = kC;
+  tum::NetworkConfig ncfg;
+  tum::NetworkSolver net(cfg, ncfg);
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> lat(-0.03, 0.04);
+  tum::NetworkResult res;
+  for (int k = 0; k < 15; ++k) {
+    const double t1 = 1.0 + k / 3.0;
+    res = net.add(exchange(poses, t1, t1 + lat(rng), 2e-6, &rng));
+    ASSERT_TRUE(res.ok);
+  }
+  ASSERT_EQ(res.devices.size(), 4u);
+  const Eigen::Matrix3d h = Eigen::Matrix3d::Identity() - res.up * res.up.transpose();
+  for (const auto& d : res.devices) {
+    if (d.id == "N1") continue;
+    const auto pose = std::find_if(poses.begin(), poses.end(), [&](const Pose& p) { return p.id == d.id; });
+    ASSERT_NE(pose, poses.end());
+    EXPECT_FALSE(d.height_observed) << d.id;
+    EXPECT_GT(d.vertical_std_m, ncfg.unobserved_height_ratio * ncfg.height_prior_m) << d.id;
+    const Vector3d err = h * (d.origin - in_body(poses[0], *pose));
+    const double std_h = std::sqrt((h * d.cov * h).trace());
+    EXPECT_LT(err.norm(), 3.0 * std_h) << d.id << ": horizontal error " << err.norm() << " m, std " << std_h << " m";
+    EXPECT_GE(d.basins, 1) << d.id;
+    EXPECT_GT(d.basin_weight, 0.0) << d.id;
+    EXPECT_LE(d.basin_weight, 1.0) << d.id;
+  }
 }
 
 TEST(TumMessages, RoundTripAndRefusals) {
