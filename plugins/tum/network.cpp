@@ -45,6 +45,9 @@ struct Problem {
   int n_params = 0;
   NetworkConfig net;
   std::vector<double> psi_anchor;  ///< prior centre of each heading offset
+  /// Per device: centre and 1-sigma of its height prior (0 and height_prior_m; the height sigma point
+  /// of the results pins one device's height with a tight one).
+  std::vector<double> h_centre, h_sigma;
   mutable std::vector<Eigen::Matrix3d> rot_cache;  ///< [dev * K + k], per residuals() call
   mutable std::vector<Eigen::Vector3d> n_cache;    ///< device 2's speaker per exchange
   double yaw_sigma = 0.35;         ///< prior 1-sigma (loose while something moves, tight when all is still)
@@ -126,7 +129,7 @@ struct Problem {
           r[i++] = dx[0], r[i++] = dx[1], r[i++] = dx[2];
         }
         prev = static_cast<int>(k);
-        if (net.height_prior_m > 0) r[i++] = up_k[k].dot(x) / net.height_prior_m;
+        if (net.height_prior_m > 0) r[i++] = (up_k[k].dot(x) - h_centre[d]) / h_sigma[d];
       }
     }
   }
@@ -205,7 +208,7 @@ void jacobian(const Problem& pr, const Eigen::VectorXd& p, Eigen::MatrixXd& jac)
       }
       prev = static_cast<int>(k);
       if (pr.net.height_prior_m > 0) {
-        jac.block<1, 3>(i, pr.x_index[d][k]) = pr.up_k[k].transpose() / pr.net.height_prior_m;
+        jac.block<1, 3>(i, pr.x_index[d][k]) = pr.up_k[k].transpose() / pr.h_sigma[d];
         ++i;
       }
     }
@@ -365,6 +368,8 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
   const bool any_moving = std::find(pr.still.begin(), pr.still.end(), false) != pr.still.end();
   pr.yaw_sigma = any_moving ? net_.yaw_prior_rad : net_.still_yaw_prior_rad;
   for (int d = 0; d < pr.n_dev; ++d) pr.psi_anchor.push_back(any_moving ? 0.0 : state_[pr.ids[d]].psi_anchor);
+  pr.h_centre.assign(static_cast<std::size_t>(pr.n_dev), 0.0);
+  pr.h_sigma.assign(static_cast<std::size_t>(pr.n_dev), net_.height_prior_m);
   int np = 0;
   for (int d = 0; d < pr.n_dev; ++d) {
     pr.psi_index.push_back(np++);
@@ -427,9 +432,11 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
     }
     known[static_cast<std::size_t>(d)] = s.known;
   }
-  auto init_rho = [&](Eigen::VectorXd& q) {
+  // Clock offsets from the HearsM arrivals at the positions in q (one device, or every device: -1).
+  auto init_rho = [&](Eigen::VectorXd& q, int only = -1) {
     for (int d = 0; d < pr.n_dev; ++d)
       for (int k = 0; k < K; ++k) {
+        if (only >= 0 && d != only) continue;
         if (pr.rho_index[d][k] < 0) continue;
         double sum = 0.0;
         int n = 0;
@@ -442,6 +449,38 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
       }
   };
   std::vector<bool> all(static_cast<std::size_t>(np), true);
+  // One device's own parameters (heading offset, origins, clock offsets): the multi-start's mask.
+  auto own_mask = [&](int d) {
+    std::vector<bool> mask(static_cast<std::size_t>(np), false);
+    mask[static_cast<std::size_t>(pr.psi_index[d])] = true;
+    for (int k = 0; k < K; ++k) {
+      if (pr.x_index[d][k] >= 0)
+        for (int a = 0; a < 3; ++a) mask[static_cast<std::size_t>(pr.x_index[d][k] + a)] = true;
+      if (pr.rho_index[d][k] >= 0) mask[static_cast<std::size_t>(pr.rho_index[d][k])] = true;
+    }
+    return mask;
+  };
+  const Eigen::Vector3d up_new = pr.up_k[static_cast<std::size_t>(newest)];
+  const Eigen::Matrix3d horizontal = Eigen::Matrix3d::Identity() - up_new * up_new.transpose();
+  // Distinct basins among solutions (cost, x, psi) of one still device: best first, each farther than
+  // basin_distinct_m horizontally from every one kept before it (a mirror image through device 1's
+  // horizontal plane is the same horizontal position: not a distinct basin).
+  auto distinct_basins = [&](std::vector<Basin> sols, double drop_cost) {
+    std::sort(sols.begin(), sols.end(), [](const Basin& a, const Basin& b) { return a.cost < b.cost; });
+    std::vector<Basin> kept;
+    for (const Basin& b : sols) {
+      if (!b.x.allFinite() || !std::isfinite(b.cost) || b.x.norm() > cfg_.max_range_m) continue;
+      if (!kept.empty() && b.cost - kept.front().cost > drop_cost) break;
+      bool dup = false;
+      for (const Basin& k : kept) dup = dup || (horizontal * (b.x - k.x)).norm() < net_.basin_distinct_m;
+      if (!dup) kept.push_back(b);
+      if (static_cast<int>(kept.size()) > net_.alternatives) break;
+    }
+    if (!kept.empty()) kept.erase(kept.begin());  // the best is the solution itself
+    return kept;
+  };
+  std::vector<std::vector<std::vector<Basin>>> cand_basins;  // [candidate][device]: multi-start solutions
+  std::vector<Basin> dev2_sols;                              // device 2's candidates, each solved
 
   // Device 2's newest position: every root of the single-exchange solve is a candidate (Sec. IV-B:
   // the roots are kept; the window decides).
@@ -451,9 +490,25 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
     candidates.push_back(p.segment<3>(pr.x_index[pr.dev2][newest]));
   } else {
     for (std::size_t i = 0; i < single.devices[1].roots.size() && i < 4; ++i) candidates.push_back(single.devices[1].roots[i].x);
+    // A still device 2 is placed once: its mirror image through device 1's two-mic axis (the vertical
+    // plane through device 1's mics; what a wrong heading of device 2 turns into the better fit of one
+    // exchange) is a candidate too, so that the window can decide between the two formations.
+    const DeviceExchange& d1 = devices[0];
+    if (pr.still[pr.dev2] && !candidates.empty() && d1.mics.size() >= 2) {
+      const Eigen::Vector3d up = pr.up_k[static_cast<std::size_t>(newest)];
+      const Eigen::Vector3d axis = d1.mics[1] - d1.mics[0];
+      const Eigen::Vector3d n = axis.cross(up);
+      if (n.norm() > 1e-6) {
+        const Eigen::Vector3d u = n.normalized(), mid = 0.5 * (d1.mics[0] + d1.mics[1]);
+        const Eigen::Vector3d x = candidates.front();
+        candidates.push_back(x - 2.0 * u.dot(x - mid) * u);
+      }
+    }
   }
   Eigen::VectorXd best_p = p;
   double best_cost = kInf;
+  std::size_t best_cand = 0;
+  std::vector<std::pair<Eigen::VectorXd, double>> cand_q;  // every candidate's solution and cost
   for (const Eigen::Vector3d& cand : candidates) {
     Eigen::VectorXd q = p;
     q.segment<3>(pr.x_index[pr.dev2][newest]) = cand;
@@ -461,6 +516,7 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
       if (pr.x_index[pr.dev2][k] >= 0 && (!dev2_known || !moving_x_[pr.ids[pr.dev2]][static_cast<std::size_t>(k)].allFinite()))
         q.segment<3>(pr.x_index[pr.dev2][k]) = cand;
     init_rho(q);
+    cand_basins.emplace_back(static_cast<std::size_t>(pr.n_dev));
     // Unknown monitors: multi-start on their own parameters with the rest fixed.
     for (int d = 0; d < pr.n_dev; ++d) {
       // A device seen for the first time, and every device while the window fills (one exchange leaves
@@ -468,13 +524,11 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
       // known device's current solution is one of them.
       const bool warmup = K < net_.window || state_[pr.ids[d]].exchanges < net_.window;
       if (d == pr.dev2 || (known[static_cast<std::size_t>(d)] && !warmup)) continue;
-      std::vector<bool> mask(static_cast<std::size_t>(np), false);
-      mask[static_cast<std::size_t>(pr.psi_index[d])] = true;
-      for (int k = 0; k < K; ++k) {
-        if (pr.x_index[d][k] >= 0) mask[static_cast<std::size_t>(pr.x_index[d][k])] = mask[static_cast<std::size_t>(pr.x_index[d][k] + 1)] =
-            mask[static_cast<std::size_t>(pr.x_index[d][k] + 2)] = true;
-        if (pr.rho_index[d][k] >= 0) mask[static_cast<std::size_t>(pr.rho_index[d][k])] = true;
-      }
+      const std::vector<bool> mask = own_mask(d);
+      std::vector<Basin>& sols = cand_basins.back()[static_cast<std::size_t>(d)];
+      auto record = [&](const Eigen::VectorXd& t, double cst) {
+        if (pr.still[d]) sols.push_back(Basin{t.segment<3>(pr.x_index[d][newest]), t[pr.psi_index[d]], cst});
+      };
       const Eigen::Vector3d centre = 0.5 * (pr.m_k[newest] + pr.n_of(newest, q));
       Eigen::VectorXd best_local = q;
       double best_local_cost = kInf;
@@ -485,6 +539,7 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
         init_rho(t);
         best_local_cost = solve_lm(pr, t, mask, 15);
         best_local = t;
+        record(t, best_local_cost);
       }
       for (double radius : {0.7, 1.5, 2.5}) {
         for (int i = 0; i < n_dir; ++i) {
@@ -497,17 +552,138 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
             if (pr.x_index[d][k] >= 0) t.segment<3>(pr.x_index[d][k]) = x0;
           init_rho(t);
           const double cst = solve_lm(pr, t, mask, 15);
+          record(t, cst);
           if (cst < best_local_cost) best_local_cost = cst, best_local = t;
         }
       }
       q = best_local;
     }
     const double cst = solve_lm(pr, q, all, candidates.size() > 1 ? 4 : net_.iterations);
-    if (cst < best_cost) best_cost = cst, best_p = q;
+    if (pr.still[pr.dev2]) dev2_sols.push_back(Basin{q.segment<3>(pr.x_index[pr.dev2][newest]), q[pr.psi_index[pr.dev2]], cst});
+    cand_q.emplace_back(q, cst);
+    if (cst < best_cost) best_cost = cst, best_p = q, best_cand = cand_basins.size() - 1;
   }
+  // Snapshot of a solution: every device placed in the newest exchange -> its basin.
+  auto snapshot = [&](const Eigen::VectorXd& q, double cst) {
+    std::map<std::string, Basin> f;
+    for (int d = 0; d < pr.n_dev; ++d)
+      if (pr.x_index[d][newest] >= 0) f[pr.ids[d]] = Basin{q.segment<3>(pr.x_index[d][newest]), q[pr.psi_index[d]], cst};
+    return f;
+  };
+  auto dev2_apart = [&](const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+    const int xi = pr.x_index[pr.dev2][newest];
+    return (horizontal * (a.segment<3>(xi) - b.segment<3>(xi))).norm() >= net_.basin_distinct_m;
+  };
+  if (any_moving) {
+    formations_.clear();
+  } else if (cand_q.size() > 1) {
+    // Device 2's other roots, each with its monitors: the runner-up formations (best first).
+    std::sort(cand_q.begin(), cand_q.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
+    formations_.clear();
+    std::vector<const Eigen::VectorXd*> kept{&best_p};
+    for (const auto& [q, cst] : cand_q) {
+      if (static_cast<int>(formations_.size()) >= net_.alternatives) break;
+      bool apart = true;
+      for (const Eigen::VectorXd* k : kept) apart = apart && dev2_apart(q, *k);
+      if (!apart) continue;
+      formations_.push_back(snapshot(q, cst));
+      kept.push_back(&q);
+    }
+  }
+  // The chosen candidate's runner-up basins replace the kept ones where a multi-start ran.
+  for (int d = 0; d < pr.n_dev; ++d) {
+    const std::vector<Basin>& sols = cand_basins[best_cand][static_cast<std::size_t>(d)];
+    if (!sols.empty()) state_[pr.ids[d]].alternatives = distinct_basins(sols, kInf);
+  }
+  if (dev2_sols.size() > 1) state_[pr.ids[pr.dev2]].alternatives = distinct_basins(dev2_sols, kInf);
   p = best_p;  // the best candidate after a few iterations; the final solve below converges it
   Eigen::MatrixXd info;
-  const double cost = solve_lm(pr, p, all, net_.iterations, &info);
+  double cost = solve_lm(pr, p, all, net_.iterations, &info);
+  const int dof = std::max(1, pr.n_residuals() - np);
+
+  // Kept basins of every still device, re-solved in this window (its own parameters, the rest fixed
+  // at the solution): one that now fits better takes over (the growing window decides); the others'
+  // costs weight the covariance's mixture below.
+  std::vector<std::vector<Basin>> basins(static_cast<std::size_t>(pr.n_dev));
+  auto resolve_basins = [&] {
+    bool switched = false;
+    for (int d = 0; d < pr.n_dev && !switched; ++d) {
+      auto& alts = state_[pr.ids[d]].alternatives;
+      basins[static_cast<std::size_t>(d)].clear();
+      if (!pr.still[d] || pr.x_index[d][newest] < 0) {
+        alts.clear();
+        continue;
+      }
+      const std::vector<bool> mask = own_mask(d);
+      const int xi = pr.x_index[d][newest];
+      for (Basin& b : alts) {
+        Eigen::VectorXd t = p;
+        t.segment<3>(xi) = b.x;
+        t[pr.psi_index[d]] = b.psi;
+        init_rho(t, d);
+        b.cost = solve_lm(pr, t, mask, 6);
+        b.x = t.segment<3>(xi), b.psi = t[pr.psi_index[d]];
+        if (b.cost < cost - 1e-9 && !switched) {
+          // The runner-up fits the window better: it becomes the solution, the old one a runner-up.
+          const Basin old{p.segment<3>(xi), p[pr.psi_index[d]], cost};
+          p = t;
+          cost = solve_lm(pr, p, all, net_.iterations, &info);
+          b = old;
+          ++basin_switches_;
+          switched = true;
+        }
+      }
+      if (switched) break;
+      std::vector<Basin> all_b{Basin{p.segment<3>(xi), p[pr.psi_index[d]], cost}};
+      all_b.insert(all_b.end(), alts.begin(), alts.end());
+      alts = distinct_basins(all_b, net_.basin_drop_chi2 * std::max(1.0, cost / dof));
+      basins[static_cast<std::size_t>(d)] = alts;
+    }
+    return switched;
+  };
+  // Runner-up formations, re-solved jointly from where they were: one that fits better takes over.
+  std::vector<std::pair<std::map<std::string, Basin>, double>> formation_fits;
+  for (auto& f : formations_) {
+    Eigen::VectorXd t = p;
+    for (int d = 0; d < pr.n_dev; ++d) {
+      const auto it = f.find(pr.ids[d]);
+      if (it == f.end() || pr.x_index[d][newest] < 0) continue;
+      for (int k = 0; k < K; ++k)
+        if (pr.x_index[d][k] >= 0) t.segment<3>(pr.x_index[d][k]) = it->second.x;
+      t[pr.psi_index[d]] = it->second.psi;
+    }
+    init_rho(t);
+    double cf = solve_lm(pr, t, all, 8);
+    if (cf < cost) {
+      const std::map<std::string, Basin> old = snapshot(p, cost);
+      std::swap(p, t);
+      cost = solve_lm(pr, p, all, net_.iterations, &info);
+      cf = old.begin()->second.cost;
+      ++basin_switches_;
+    }
+    f = snapshot(t, cf);
+  }
+  {
+    const double drop = net_.basin_drop_chi2 * std::max(1.0, cost / dof);
+    std::vector<std::map<std::string, Basin>> keep;
+    for (auto& f : formations_) {
+      const double cf = f.empty() ? kInf : f.begin()->second.cost;
+      const auto it2 = f.find(pr.ids[pr.dev2]);
+      if (cf - cost > drop || it2 == f.end() ||
+          (horizontal * (it2->second.x - p.segment<3>(pr.x_index[pr.dev2][newest]))).norm() < net_.basin_distinct_m)
+        continue;
+      keep.push_back(std::move(f));
+    }
+    formations_ = std::move(keep);
+  }
+  for (int round = 0; round < 3 && resolve_basins(); ++round) {
+  }
+  // The formations' placements join each device's basins in the mixture.
+  for (const auto& f : formations_)
+    for (int d = 0; d < pr.n_dev; ++d) {
+      const auto it = f.find(pr.ids[d]);
+      if (it != f.end() && pr.still[d] && pr.x_index[d][newest] >= 0) basins[static_cast<std::size_t>(d)].push_back(it->second);
+    }
 
   // Sec. VIII in the window: the range device 1 - device 2 is what one exchange measures best (the
   // distance sums, Eq. 3-4). A window whose device 2 disagrees with this exchange's range by more
@@ -521,6 +697,7 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
       const Exchange keep = window_.back();
       window_.clear();
       state_.clear();
+      formations_.clear();
       moving_x_.clear();
       restarting_ = true;
       NetworkResult again = add(keep.devices);
@@ -533,7 +710,6 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
   // ---- results ----
   Eigen::VectorXd r;
   pr.residuals(p, r);
-  const int dof = std::max(1, static_cast<int>(r.size()) - np);
   out.chi2_dof = cost / dof;
   const double scale = std::max(1.0, out.chi2_dof);
   Eigen::FullPivLU<Eigen::MatrixXd> lu(info);
@@ -568,6 +744,46 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
     np_.origin = s.x;
     np_.cov = cov.block<3, 3>(xi, xi) * scale;
     np_.yaw_offset_rad = s.psi;
+    // Height: observed only when the data narrow the prior clearly (network.hpp).
+    np_.vertical_std_m = std::sqrt(std::max(0.0, up_new.dot(np_.cov * up_new)));
+    if (net_.height_prior_m > 0 && np_.vertical_std_m > net_.unobserved_height_ratio * net_.height_prior_m) {
+      np_.height_observed = false;
+      // Sigma points: the device's height pinned at +-1 posterior std from the solution (its own
+      // parameters re-solved, the rest fixed). A range fixes the slant distance, so the horizontal
+      // position moves by h(s) ~ s^2: with s ~ N(0, std^2), E[h h^T] = 3/2 (h+ h+^T + h- h-^T).
+      const std::vector<bool> mask = own_mask(d);
+      const double centre = pr.h_centre[d], sig = pr.h_sigma[d];
+      Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
+      for (double sign : {1.0, -1.0}) {
+        const double shift = sign * np_.vertical_std_m;
+        Eigen::VectorXd t = p;
+        for (int k = 0; k < K; ++k)
+          if (pr.x_index[d][k] >= 0 && (!pr.still[d] || k == newest)) t.segment<3>(pr.x_index[d][k]) += shift * pr.up_k[k];
+        pr.h_centre[d] = up_new.dot(s.x) + shift;
+        pr.h_sigma[d] = 1e-3;
+        solve_lm(pr, t, mask, 4);
+        const Eigen::Vector3d h = horizontal * (t.segment<3>(xi) - s.x);
+        second += 1.5 * h * h.transpose();
+      }
+      pr.h_centre[d] = centre, pr.h_sigma[d] = sig;
+      np_.cov += second;
+    }
+    // Basins: the mixture of the reported solution and its kept runner-ups, weighted by their fit
+    // (exp(-chi2/2), chi2 scaled like the covariance), about the reported point.
+    const std::vector<Basin>& alts = basins[static_cast<std::size_t>(d)];
+    if (!alts.empty()) {
+      double wsum = 1.0;
+      Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
+      for (const Basin& b : alts) {
+        const double w = std::exp(-0.5 * std::max(0.0, b.cost - cost) / scale);
+        const Eigen::Vector3d dx = np_.height_observed ? Eigen::Vector3d(b.x - s.x) : Eigen::Vector3d(horizontal * (b.x - s.x));
+        spread += w * dx * dx.transpose();
+        wsum += w;
+      }
+      np_.cov += spread / wsum;
+      np_.basins = 1 + static_cast<int>(alts.size());
+      np_.basin_weight = 1.0 / wsum;
+    }
     double sum = 0.0;
     int n = 0;
     for (std::size_t i = 0; i < pr.eqs.size(); ++i)

@@ -18,7 +18,19 @@
 // Levenberg-Marquardt with an analytic Jacobian (a few dozen unknowns), started from the previous
 // window's solution; a device seen for the first time starts from every root of its single-exchange
 // solution (solver.hpp) and the best is kept. Covariances: (J^T W J)^-1 scaled by the window's
-// chi-square per degree of freedom when that exceeds 1.
+// chi-square per degree of freedom when that exceeds 1, then made honest about what the Gaussian
+// around one basin does not know (docs/tum.md, "Uncertainty"):
+//   basins    the multi-start's distinct runner-up basins of a still device are kept across exchanges
+//             (State::alternatives), and so are whole runner-up formations (device 2's other roots,
+//             the monitors placed around each) while every device is still; all are re-solved in every
+//             window: one that fits better takes over (the growing window decides), the others widen
+//             the covariance by their cost-weighted mixture about the reported point (as AMIL's
+//             cycle_mixture) until they fit worse by more than basin_drop_chi2;
+//   height    when the data add little to the height prior (posterior vertical std above
+//             `unobserved_height_ratio` x the prior's), the height is not observed: the placement says
+//             so (height_observed = false), and the horizontal error that an unknown height causes at
+//             second order (a range fixes the slant distance, not the horizontal one) enters the
+//             covariance from two sigma points, the device's height pinned at +-1 posterior std.
 #pragma once
 
 #include <Eigen/Dense>
@@ -41,6 +53,10 @@ struct NetworkConfig {
   double huber_k = 3.0;            ///< Huber threshold, in sigmas
   int iterations = 20;
   double outlier_m = 0.3;          ///< window vs this exchange's range device 1 - device 2 (restart beyond)
+  int alternatives = 2;            ///< runner-up basins kept per still device
+  double basin_distinct_m = 0.05;  ///< horizontal distance beyond which two solutions are distinct basins
+  double basin_drop_chi2 = 30.0;   ///< a basin worse than the best by more than this (chi2) is dropped
+  double unobserved_height_ratio = 0.5;  ///< posterior / prior vertical std above which height is unobserved
 };
 
 struct NetworkPlacement {
@@ -50,6 +66,10 @@ struct NetworkPlacement {
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();   ///< device 1 body frame
   Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
   double yaw_offset_rad = 0.0;
+  bool height_observed = true;     ///< false: the vertical is the height prior's (cov: horizontal part honest)
+  double vertical_std_m = 0.0;     ///< posterior 1-sigma along device 1's vertical
+  int basins = 1;                  ///< basins in the covariance's mixture (1 = only the reported one)
+  double basin_weight = 1.0;       ///< the reported basin's weight in that mixture
   double rms_sigma = 0.0;          ///< RMS whitened residual of its equations in the newest exchange
 };
 
@@ -75,23 +95,35 @@ class NetworkSolver {
     double t_m1 = 0.0, t_n2 = 0.0;   ///< own emission times (device 1 / device 2 clocks)
     double t_ref = 0.0;
   };
+  struct Basin {
+    Eigen::Vector3d x = Eigen::Vector3d::Zero();
+    double psi = 0.0;
+    double cost = 0.0;
+  };
   struct State {
     Eigen::Vector3d x = Eigen::Vector3d::Zero();
     double psi = 0.0;
     bool known = false;
     int exchanges = 0;  ///< exchanges it was placed in
     double psi_anchor = 0.0;  ///< heading offset learnt while something moved
+    std::vector<Basin> alternatives;  ///< distinct runner-up basins (still devices), best first
   };
   SolverConfig cfg_;
   NetworkConfig net_;
   std::deque<Exchange> window_;
   std::map<std::string, State> state_;
   std::map<std::string, std::deque<Eigen::Vector3d>> moving_x_;  ///< per exchange of the window
+  /// Runner-up formations while every device is still: the other roots of device 2 with the monitors
+  /// placed around each (device id -> its basin), re-solved in every window until they fit clearly worse.
+  std::vector<std::map<std::string, Basin>> formations_;
   bool restarting_ = false;
   std::uint64_t restarts_ = 0;
+  std::uint64_t basin_switches_ = 0;
 
  public:
   std::uint64_t restarts() const { return restarts_; }
+  /// Times a kept runner-up basin fitted the window better than the reported one and took over.
+  std::uint64_t basin_switches() const { return basin_switches_; }
 };
 
 }  // namespace locus::plugins::tum

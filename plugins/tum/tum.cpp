@@ -368,7 +368,7 @@ class TumLocalizer final : public Localizer {
       }
       if (debug_)
         log_->debug("tum: t=" + std::to_string(res.t_ref_s) + " " + p.id + " x=" + std::to_string(x[0]) + "," + std::to_string(x[1]) +
-                    "," + std::to_string(x[2]) + " yaw_off=" + std::to_string(p.yaw_offset_rad) + " rms=" + std::to_string(p.rms_sigma) +
+                    "," + std::to_string(x[2]) + " yaw_off=" + std::to_string(p.yaw_offset_rad) + " rms=" + std::to_string(p.rms_sigma) + " basins=" + std::to_string(p.basins) + " w=" + std::to_string(p.basin_weight) + " vstd=" + std::to_string(p.vertical_std_m) +
                     " chi2=" + std::to_string(res.chi2_dof) + (p.still ? " still" : " moving"));
       Estimate e;
       e.plugin.assign(instance_);
@@ -380,13 +380,17 @@ class TumLocalizer final : public Localizer {
       e.dims = 3;
       e.distance_m = x.norm();
       if (p.id != device1_) {
-        // 1-sigma of the position in the plane perpendicular to device 1's vertical: along the vertical
-        // flat devices leave the position to the height prior (network.hpp), whose spread says nothing
-        // about the error (docs/tum.md, "Uncertainty").
-        const Eigen::Vector3d up = res.up;
-        const Eigen::Matrix3d h = Eigen::Matrix3d::Identity() - up * up.transpose();
-        const double var_h = std::max(0.0, (h * cov * h).trace());
-        e.std_m = std::sqrt(var_h + std_floor_m_ * std_floor_m_);
+        // 1-sigma of the 3D position; where the data leave the height to the prior (network.hpp), the
+        // vertical is not known: flagged, and std_m covers device 1's horizontal plane only (docs/tum.md,
+        // "Uncertainty").
+        double var = std::max(0.0, cov.trace());
+        if (!p.height_observed) {
+          const Eigen::Vector3d up = res.up;
+          const Eigen::Matrix3d h = Eigen::Matrix3d::Identity() - up * up.transpose();
+          var = std::max(0.0, (h * cov * h).trace());
+          e.flags |= kEstimateHeightUnobserved;
+        }
+        e.std_m = std::sqrt(var + std_floor_m_ * std_floor_m_);
         const double r = x.norm();
         if (r > 0) e.distance_std_m = std::sqrt(std::max(0.0, (x / r).dot(cov * (x / r))));
       }

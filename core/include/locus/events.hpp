@@ -101,6 +101,9 @@ enum EstimateFlag : std::uint32_t {
                                       ///< treat the result as unreliable; confidence is lowered accordingly
   kEstimateWeak = 1u << 3,            ///< too few reliable measurements to pin the answer down (it may be a
                                       ///< mirror image or far off); confidence is lowered accordingly
+  kEstimateHeightUnobserved = 1u << 4,  ///< the data do not observe the position along the reference's
+                                        ///< vertical: position_m's vertical component is the localizer's
+                                        ///< prior, and std_m covers the horizontal plane only
 };
 
 struct Estimate {

@@ -108,6 +108,7 @@ struct ToJson {
     if (e.flags & kEstimateAmbiguous) flags.push_back("ambiguous");
     if (e.flags & kEstimateInconsistent) flags.push_back("inconsistent");
     if (e.flags & kEstimateWeak) flags.push_back("weak");
+    if (e.flags & kEstimateHeightUnobserved) flags.push_back("height_unobserved");
     j["flags"] = flags;
     if (e.los >= 0) j["los"] = e.los == 1;
   }
