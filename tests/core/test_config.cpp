@@ -8,9 +8,11 @@
 #include <filesystem>
 #include <fstream>
 #include <optional>
+#include <random>
 #include <string>
 #include <vector>
 
+#include "config_values.hpp"
 #include "support/test_host.hpp"
 #include "locus/config.hpp"
 #include "locus/playback.hpp"
@@ -785,6 +787,44 @@ TEST_F(NotBuiltTest, OtherUnknownNamesStayUnknown) {
                       "unknown audio source 'fakejak' (registered: synth)");
   EXPECT_CONFIG_ERROR(e[1], 4, 22, "devices[0].playback.sink",
                       "unknown playback sink 'speakr'; did you mean 'speaker'? (registered: speaker)");
+}
+
+// The did-you-mean distance against the textbook full-matrix recurrence on random short words over a
+// small alphabet (many repeats, so transpositions and ties are exercised), and a huge unknown key
+// gets no suggestion rather than a matrix of its size per candidate.
+std::size_t reference_osa(const std::string& a, const std::string& b) {
+  std::vector<std::vector<std::size_t>> d(a.size() + 1, std::vector<std::size_t>(b.size() + 1));
+  for (std::size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (std::size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i)
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + (a[i - 1] == b[j - 1] ? 0u : 1u)});
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1]) d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+    }
+  return d[a.size()][b.size()];
+}
+
+TEST(ConfigSuggestions, EditDistanceMatchesTheFullMatrixRecurrence) {
+  std::mt19937 rng(7);
+  auto word = [&] {
+    std::string w(std::uniform_int_distribution<int>(0, 9)(rng), 'a');
+    for (char& c : w) c = static_cast<char>('a' + std::uniform_int_distribution<int>(0, 3)(rng));
+    return w;
+  };
+  for (int k = 0; k < 2000; ++k) {
+    const std::string a = word(), b = word();
+    ASSERT_EQ(config_detail::edit_distance(a, b), reference_osa(a, b)) << "'" << a << "' vs '" << b << "'";
+  }
+  EXPECT_EQ(config_detail::edit_distance("threshold_db", "treshold_db"), 1u);
+  EXPECT_EQ(config_detail::edit_distance("fast", "fats"), 1u);
+}
+
+TEST(ConfigSuggestions, SuggestsOnlyPlausibleTyposAndNothingForAHugeKey) {
+  const std::vector<std::string> keys{"threshold_db", "window_s", "log_level"};
+  EXPECT_EQ(config_detail::closest("treshold_db", keys), "threshold_db");
+  EXPECT_EQ(config_detail::closest("windows", keys), "window_s");
+  EXPECT_EQ(config_detail::closest("colour", keys), "");
+  EXPECT_EQ(config_detail::closest(std::string(100000, 'w'), keys), "");
 }
 
 }  // namespace

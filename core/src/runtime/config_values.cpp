@@ -237,27 +237,39 @@ std::string check_list_length(const ParamSpec& spec, std::size_t n) {
 
 std::size_t edit_distance(std::string_view a, std::string_view b) {
   // Optimal string alignment: insertions, deletions, substitutions and adjacent transpositions.
+  // Three rolling rows (one allocation): a row needs the two before it for transpositions.
   const std::size_t n = a.size(), m = b.size();
-  std::vector<std::vector<std::size_t>> d(n + 1, std::vector<std::size_t>(m + 1));
-  for (std::size_t i = 0; i <= n; ++i) d[i][0] = i;
-  for (std::size_t j = 0; j <= m; ++j) d[0][j] = j;
+  std::vector<std::size_t> rows(3 * (m + 1));
+  std::size_t* before = rows.data();
+  std::size_t* prev = before + (m + 1);
+  std::size_t* cur = prev + (m + 1);
+  for (std::size_t j = 0; j <= m; ++j) prev[j] = j;
   for (std::size_t i = 1; i <= n; ++i) {
+    cur[0] = i;
     for (std::size_t j = 1; j <= m; ++j) {
       const std::size_t cost = a[i - 1] == b[j - 1] ? 0 : 1;
-      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost});
-      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1]) d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+      cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + cost});
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1]) cur[j] = std::min(cur[j], before[j - 2] + 1);
     }
+    std::size_t* const recycled = before;
+    before = prev;
+    prev = cur;
+    cur = recycled;
   }
-  return d[n][m];
+  return prev[m];
 }
 
 std::string closest(std::string_view name, const std::vector<std::string>& candidates) {
   // A typo: at most a third of the longer word's letters wrong (at least one edit allowed, at most 3).
+  // The distance is at least the difference in length, so most candidates (and any absurdly long
+  // key a broken file may hold) are ruled out without computing it.
   std::string best;
   std::size_t best_d = std::numeric_limits<std::size_t>::max();
   for (const std::string& c : candidates) {
-    const std::size_t d = edit_distance(name, c);
     const std::size_t limit = std::clamp<std::size_t>(std::max(name.size(), c.size()) / 3, 1, 3);
+    const std::size_t length_gap = name.size() > c.size() ? name.size() - c.size() : c.size() - name.size();
+    if (length_gap > limit) continue;
+    const std::size_t d = edit_distance(name, c);
     if (d <= limit && d < best_d) {
       best = c;
       best_d = d;
