@@ -151,6 +151,8 @@ class ChirpDetector final : public Detector {
     dsp::Correlator::Options opt;
     opt.channels = own_ >= 0 ? 2 * channels_ : channels_;
     opt.fft_size = static_cast<std::size_t>(fft_size);
+    const double hop_s = params.get_float("hop_s");
+    opt.hop = hop_s > 0.0 ? std::max<std::size_t>(1, static_cast<std::size_t>(std::llround(hop_s * rate_))) : 0;
     opt.analytic = true;
     opt.baseband = true;
     try {
@@ -161,15 +163,19 @@ class ChirpDetector final : public Detector {
     const std::size_t n = corr_.fft_size();
 
     // Per template: mainlobe guard (the envelope's mainlobe is ~fs/B wide each side) and how long an
-    // event keeps collecting after its strongest lag: one template length plus the guard, because the
-    // range sidelobes of a strong chirp (and its cross-terms with other templates) reach up to a
-    // template length before the mainlobe and may open the event early.
+    // event keeps collecting after its strongest lag (settle_s): by default one template length plus
+    // the guard, because the range sidelobes of a strong chirp (and its cross-terms with other
+    // templates) reach up to a template length before the mainlobe and may open the event early; never
+    // less than the multipath fit's window after the peak (3 guards).
+    const double settle_s = params.get_float("settle_s");
     guard_.resize(templates_);
     span_.resize(templates_);
     std::uint64_t longest_span = 0;
     for (std::size_t t = 0; t < templates_; ++t) {
       guard_[t] = static_cast<std::uint64_t>(std::ceil(2.0 * rate_ / bandwidth_hz[t])) + 2;
-      span_[t] = templates[t].size() + guard_[t];
+      span_[t] = settle_s > 0.0 ? std::max<std::uint64_t>(static_cast<std::uint64_t>(std::llround(settle_s * rate_)),
+                                                          3 * guard_[t] + 1)
+                                : templates[t].size() + guard_[t];
       longest_span = std::max(longest_span, window_frames_ + span_[t] + 2 * guard_[t]);
     }
     // Multipath fit windows: [peak - guard, peak + 3 guard] (the direct path plus reflections up to
@@ -178,7 +184,9 @@ class ChirpDetector final : public Detector {
     std::size_t widest = 0;
     for (std::size_t t = 0; t < templates_; ++t) {
       const std::size_t w = static_cast<std::size_t>(4 * guard_[t] + 1);
-      fits_[t].configure(templates[t], n, ctx.fft, corr_.centroid_omega(t), w + 2, w);
+      // (its autocorrelation table needs an FFT of twice the template, whatever the correlator's size)
+      const std::size_t fit_n = std::max(n, std::bit_ceil(2 * templates[t].size()));
+      fits_[t].configure(templates[t], fit_n, ctx.fft, corr_.centroid_omega(t), w + 2, w);
       widest = std::max(widest, w);
     }
     zwin_.assign(widest, {});
@@ -491,10 +499,14 @@ class ChirpDetector final : public Detector {
       pw[m] = std::norm(z[m]);
       pmax = std::max(pmax, pw[m]);
     }
-    // The same noise estimate as scan(): the median over every kNoiseStride-th lag.
+    // The same noise estimate as scan(): the median over every kNoiseStride-th lag of the window's
+    // whole span (lookback: overlapped windows).
     const std::size_t step = kNoiseStride / d;
     std::size_t k = 0;
-    for (std::size_t m = 0; m < nm; m += step) sorted_[k++] = pw[m];
+    {
+      const std::size_t back = corr_.lookback(cchan(c, t)) / d;
+      for (std::size_t m = 0; m < back + nm; m += step) sorted_[k++] = std::norm(z[static_cast<std::ptrdiff_t>(m) - static_cast<std::ptrdiff_t>(back)]);
+    }
     const auto mid = sorted_.begin() + static_cast<std::ptrdiff_t>(k / 2);
     std::nth_element(sorted_.begin(), mid, sorted_.begin() + static_cast<std::ptrdiff_t>(k));
     const double p_window = static_cast<double>(*mid) / std::numbers::ln2;
@@ -526,9 +538,16 @@ class ChirpDetector final : public Detector {
       pmax = std::max(pmax, pw[i]);
     }
     // Noise power from the median of |z|^2 (exponential for Gaussian noise: median = P ln 2), taken
-    // over every 4th lag (neighbouring lags of a band-limited output are correlated anyway).
+    // over every 4th lag (neighbouring lags of a band-limited output are correlated anyway) of the
+    // window's whole span: with overlapped windows (hop_s) also the lags earlier windows output, else
+    // a short window inside a loud chirp's sidelobes would take them for noise.
     std::size_t m = 0;
-    for (std::size_t i = 0; i < count; i += kNoiseStride) sorted_[m++] = pw[i];
+    {
+      const std::size_t back = corr_.lookback(cc);
+      const float* re0 = re - back;
+      const float* im0 = im - back;
+      for (std::size_t i = 0; i < back + count; i += kNoiseStride) sorted_[m++] = re0[i] * re0[i] + im0[i] * im0[i];
+    }
     const auto mid = sorted_.begin() + static_cast<std::ptrdiff_t>(m / 2);
     std::nth_element(sorted_.begin(), mid, sorted_.begin() + static_cast<std::ptrdiff_t>(m));
     const double p_window = static_cast<double>(*mid) / std::numbers::ln2;
@@ -812,6 +831,16 @@ const ParamSchema& schema() {
     s.push_back(int_param("fft_size", std::int64_t{0}, 0, 1 << 22, "",
                           "Overlap-save FFT size (a power of two larger than the longest template); 0 = 4x the "
                           "longest template."));
+    s.push_back(float_param("hop_s", 0.0, 0.0, 10.0, "s",
+                      "Lags correlated per FFT window; 0 = the whole window (fft_size minus the template "
+                      "length). Shorter overlaps the windows: a detection follows its arrival's end by at most "
+                      "about this long (live latency), for proportionally more work."));
+    s.push_back(float_param("settle_s", 0.0, 0.0, 10.0, "s",
+                      "How long an event keeps collecting after its strongest lag before it is reported "
+                      "(at least 3 mainlobe widths); 0 = one template length plus a mainlobe width, which "
+                      "overlapping templates need (a stronger chirp's range sidelobes and cross-terms precede "
+                      "its mainlobe by up to a template length). A live localizer whose arrivals never overlap "
+                      "(AMIL) can shorten it to cut latency."));
     s.push_back(bool_param("cancel_own", true,
                            "When the device itself emits one of the templates (its scene `emits`) and no other "
                            "source emits the same signal: search that template in the raw audio and every other "

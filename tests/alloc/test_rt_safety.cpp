@@ -365,7 +365,8 @@ TEST(RtSafety, LiveSensorTimeBaseDoesNotAllocateOrLock) {
 // The chirp detector's multipath branch (dsp::MultipathFit) runs only when a reflection distorts the
 // correlation peak, which the generic noise-and-tone stream above does not produce: AMIL beeps with a
 // reflection 12-30 samples after the direct path (the case that made the fit necessary).
-TEST(RtSafety, ChirpMultipathFitDoesNotAllocateOrLock) {
+// live: overlapped windows and a short settle (hop_s, settle_s), as ./run hil amil runs it.
+static void chirp_multipath_rt(bool live) {
   Registry registry;
   register_builtins(registry);
   test::TestHost host;
@@ -377,6 +378,10 @@ TEST(RtSafety, ChirpMultipathFitDoesNotAllocateOrLock) {
   params.set("f1_hz", 22000.0);
   params.set("duration_s", 0.05);
   params.set("fade_s", 0.005);
+  if (live) {
+    params.set("hop_s", 0.01);
+    params.set("settle_s", 0.003);
+  }
   constexpr std::uint32_t kBlock = 256;
   constexpr double kFs = 44100.0;
   StreamInfo info;
@@ -436,6 +441,9 @@ TEST(RtSafety, ChirpMultipathFitDoesNotAllocateOrLock) {
   EXPECT_EQ(locks, 0);
   EXPECT_GE(sink.events.size(), kBeeps - 1) << "the beeps must be detected for the test to mean anything";
 }
+
+TEST(RtSafety, ChirpMultipathFitDoesNotAllocateOrLock) { chirp_multipath_rt(false); }
+TEST(RtSafety, ChirpWithOverlappedWindowsDoesNotAllocateOrLock) { chirp_multipath_rt(true); }
 
 // A Montage device: its own Gold code (through the own-emission canceller) overlapped by three other
 // users' codes 50 dB weaker and Doppler-shifted (walking, ±1.2 m/s), codes from the scene

@@ -167,10 +167,12 @@ def node_config(args, dev, player, server, mqtt_port, room_out, out_jsonl, track
             "imu": {"source": "iio", "params": {"root": os.path.join(room_out, "iio", ident), "device": "lsm6dsl",
                                                 "mode": "buffered"}},
             "geometry": geometry,
-            # fft_size 8192, the smallest the multipath fit takes (2 x the beep), not the default 16384:
-            # the detection follows the beep by up to one hop (136 ms) instead of 0.32 s (docs/detectors.md)
+            # Live latency (docs/detectors.md): windows overlapped to a 10 ms hop (the default fft_size,
+            # 16384: its noise median spans 0.32 s, as in replay), and an event reported 3 ms after its
+            # strongest lag instead of a template length (AMIL's beeps never overlap): a detection follows
+            # the end of its beep by ~10 ms plus the JACK period, instead of up to a 0.32 s hop plus 50 ms.
             "detectors": [{"plugin": "chirp", "params": {"f0_hz": 18000, "f1_hz": 22000, "duration_s": 0.05,
-                                                          "fade_s": 0.005, "fft_size": 8192}}],
+                                                          "fade_s": 0.005, "hop_s": 0.01, "settle_s": 0.003}}],
         }],
         "localizers": [{"plugin": "amil", "params": amil}],
     }
@@ -298,6 +300,13 @@ def hil_amil(args, bin_dir, out, run):
     wall = time.monotonic() - t0
     cpu = {k: 100.0 * (cpu_s(p) - cpu0[k]) / wall for k, p in pids.items()}
 
+    # The estimates are in the player's output file; give the map's SSE client (the latency clock) a
+    # moment to receive them too before the nodes stop.
+    if map_url is not None:
+        grace = time.monotonic() + 2.0
+        while time.monotonic() < grace and \
+                sum(1 for _, m in list(events) if m["event"].get("type") == "estimate") < len(estimates()):
+            time.sleep(0.02)
     print("== 4/5 stop the nodes (their audio origins), then the room (the truth)", flush=True)
     stop_sse.set()
     origins, xruns, lost = {}, {}, {}
@@ -346,6 +355,9 @@ def hil_amil(args, bin_dir, out, run):
     arrivals = []
     with open(os.path.join(room_out, "room_arrivals.csv")) as f:
         arrivals = [r for r in csv.DictReader(f) if r["source"] == player and r["receiver"] != player]
+    with open(os.path.join(out, "map_events.jsonl"), "w") as f:  # what the map's SSE client saw, when
+        for now, msg in events:
+            f.write(json.dumps({"monotonic_ns": now, "message": msg}) + "\n")
     latencies = []
     if arrivals:
         last_beep = max(float(r["t_emission"]) for r in arrivals)

@@ -42,7 +42,20 @@ void Correlator::configure(const std::vector<std::vector<float>>& templates, Fft
   }
   n_ = n;
   lmax_ = lmax;
-  hop_ = n - lmax + 1;
+  hop_ = options.hop == 0 ? n - lmax + 1 : std::min(options.hop, n - lmax + 1);
+  // Overlapped windows output their LAST hop valid lags (those whose template just became whole):
+  // outputs start off_ lags into the window. A multiple of 4 keeps them on the baseband grid (D = 4, 2).
+  off_ = n - lmax + 1 - hop_;
+  if (off_ % 4 != 0) {
+    const std::size_t up = 4 - off_ % 4;
+    if (hop_ > up) {
+      hop_ -= up;
+      off_ += up;
+    } else {
+      hop_ += off_ % 4;
+      off_ -= off_ % 4;
+    }
+  }
   channels_ = options.channels;
   templates_ = templates.size();
   analytic_ = options.analytic;
@@ -112,18 +125,19 @@ void Correlator::configure(const std::vector<std::vector<float>>& templates, Fft
         double ratio = 1.0;
         for (std::size_t off = 1; off <= d / 2; ++off) ratio = std::min(ratio, r_at(double(off)) / r0);
         bb_ratio_[t] = ratio;
-        // exp(2 pi j k (hop - 1) / N) over the band: the last lag of a full window (baseband_lag).
+        // exp(2 pi j k (off + hop - 1) / N) over the band: the last lag of a full window (baseband_lag).
         bb_tw_[t].resize(m);
         for (std::size_t i = 0; i < m; ++i)
           bb_tw_[t][i] = std::complex<float>(std::polar(
-              1.0, 2.0 * std::numbers::pi * double((k0 + i) * (hop_ - 1) % n) / double(n)));
+              1.0, 2.0 * std::numbers::pi * double((k0 + i) * (off_ + hop_ - 1) % n) / double(n)));
         break;
       }
     }
   }
   window_.assign(channels_ * n, 0.0f);
-  fill_.assign(channels_, 0);
+  fill_.assign(channels_, off_);  // overlapped: off_ zeros before the first sample (see reset())
   start_.assign(channels_, 0);
+  segment_.assign(channels_, 0);
   spec_buf_.assign(nb, {});
   prod_.assign(nb, {});
   prod_im_.assign(analytic_ ? nb : 0, {});
@@ -220,7 +234,7 @@ std::complex<float> Correlator::baseband_lag(std::size_t t, std::size_t i) const
     }
     return {re, im};
   }
-  const double w = 2.0 * std::numbers::pi * static_cast<double>(i) / static_cast<double>(n_);
+  const double w = 2.0 * std::numbers::pi * static_cast<double>(i + off_) / static_cast<double>(n_);
   std::complex<double> rot = std::polar(1.0, w * static_cast<double>(bb_k0_[t]));
   const std::complex<double> step = std::polar(1.0, w);
   std::complex<double> acc = 0.0;
@@ -233,7 +247,7 @@ std::complex<float> Correlator::baseband_lag(std::size_t t, std::size_t i) const
 
 void Correlator::advance(std::size_t ch) noexcept {
   float* w = &window_[ch * n_];
-  const std::size_t keep = lmax_ - 1;
+  const std::size_t keep = n_ - hop_;  // lmax - 1 unless Options::hop overlaps the windows
   if (keep > 0) std::memmove(w, w + hop_, keep * sizeof(float));
   fill_[ch] = keep;
   start_[ch] += hop_;
@@ -241,14 +255,18 @@ void Correlator::advance(std::size_t ch) noexcept {
 
 std::size_t Correlator::flush(std::size_t ch) noexcept {
   const std::size_t have = fill_[ch];
-  if (have < lmax_) return 0;
+  if (have < lmax_ + off_) return 0;  // no lag beyond those already output
   transform(ch);
-  return have - lmax_ + 1;
+  return have - lmax_ + 1 - off_;
 }
 
 void Correlator::reset(std::size_t ch, std::uint64_t next_index) noexcept {
-  fill_[ch] = 0;
+  // Overlapped windows: off_ zeros stand before the first sample, so that the first window's
+  // outputs are the lags from next_index on (no lag is skipped, none uses audio before the reset).
+  std::fill(&window_[ch * n_], &window_[ch * n_] + off_, 0.0f);
+  fill_[ch] = off_;
   start_[ch] = next_index;
+  segment_[ch] = next_index;
 }
 
 void correlate_direct(const float* x, std::size_t n_x, const float* h, std::size_t n_h, float* out) noexcept {

@@ -85,6 +85,56 @@ TEST(Correlator, MatchesDirectCorrelationForAnyBlockCut) {
   }
 }
 
+TEST(Correlator, OverlappedWindowsOutputEveryLagOnceAsSoonAsItsTemplateIsWhole) {
+  // Options::hop: the same outputs as plain overlap-save, each lag output once, from lag 0 on, and a
+  // lag leaves in the first window whose samples cover its template (the live latency it buys).
+  FftwPlanner planner("", false);
+  const std::vector<std::vector<float>> templates = {noise(300, 1), noise(117, 2)};
+  const std::vector<float> x = noise(9000, 4);
+  for (std::size_t hop : {1u, 100u, 37u, 725u, 5000u}) {
+    for (std::size_t block : {1u, 256u, 4096u}) {
+      Correlator c;
+      Correlator::Options opt{1, 1024, true};
+      opt.hop = hop;
+      c.configure(templates, planner, opt);
+      const std::size_t full = 1024 - 300 + 1;
+      EXPECT_LE(c.hop(), std::min(hop, full));
+      EXPECT_GE(c.hop() + 3, std::min(hop, full));
+      const Collected got = stream(c, x, block);
+      for (std::size_t t = 0; t < templates.size(); ++t) {
+        std::vector<float> ref(x.size() - templates[t].size() + 1);
+        correlate_direct(x.data(), x.size(), templates[t].data(), templates[t].size(), ref.data());
+        ASSERT_EQ(got.re[t].size(), x.size() - 300 + 1) << "hop " << hop << " block " << block;
+        ASSERT_EQ(got.im[t].size(), got.re[t].size());
+        double maxerr = 0, scale = 0;
+        for (std::size_t k = 0; k < got.re[t].size(); ++k) {
+          maxerr = std::max(maxerr, double(std::abs(got.re[t][k] - ref[k])));
+          scale = std::max(scale, double(std::abs(ref[k])));
+        }
+        EXPECT_LT(maxerr, 1e-4 * scale) << "template " << t << " hop " << hop << " block " << block;
+      }
+    }
+    // Latency: after pushing the samples of lag k's template (k + 300 of them), lag k has been output
+    // once at most hop() - 1 more samples arrived.
+    Correlator c;
+    Correlator::Options opt{1, 1024, true};
+    opt.hop = hop;
+    c.configure(templates, planner, opt);
+    std::size_t pushed = 0, worst_wait = 0;
+    std::uint64_t next_lag = 0;
+    while (pushed < x.size()) {
+      pushed += c.push(0, x.data() + pushed, 1);
+      if (c.full(0)) {
+        c.transform(0);
+        for (std::uint64_t k = next_lag; k < c.window_start(0) + c.hop(); ++k) worst_wait = std::max(worst_wait, pushed - (k + 300));
+        next_lag = c.window_start(0) + c.hop();
+        c.advance(0);
+      }
+    }
+    EXPECT_LT(worst_wait, c.hop()) << "hop " << hop;
+  }
+}
+
 TEST(Correlator, DirectCorrelationIsTheDefinition) {
   const std::vector<float> x = {1, 2, 3, 4, 5}, h = {1, -1};
   std::vector<float> y(4);
@@ -139,10 +189,12 @@ TEST(Correlator, BasebandOutputIsTheDecimatedAnalyticOutput) {
   for (std::size_t j = 0; j < h.size(); ++j) x[5000 + j] += h[j];
   FftwPlanner fftw("", false);
   RealOnlyPlanner real_only;
-  for (FftPlanner* planner : {static_cast<FftPlanner*>(&fftw), static_cast<FftPlanner*>(&real_only)}) {
+  for (FftPlanner* planner : {static_cast<FftPlanner*>(&fftw), static_cast<FftPlanner*>(&real_only)})
+  for (std::size_t hop : {std::size_t{0}, std::size_t{801}}) {  // plain, and overlapped windows
     Correlator c;
     Correlator::Options opt{1, 4096, true};
     opt.baseband = true;
+    opt.hop = hop;
     c.configure({h}, *planner, opt);
     const std::size_t d = c.baseband_decimation(0);
     ASSERT_EQ(d, 4u);  // 2-8 kHz (+ skirts) fits in N/4 bins = 11 kHz
@@ -161,15 +213,15 @@ TEST(Correlator, BasebandOutputIsTheDecimatedAnalyticOutput) {
         const double full = std::hypot(c.real(0)[m * d], c.imag(0)[m * d]);
         worst = std::max(worst, std::abs(std::abs(std::complex<double>(c.baseband(0)[m])) - full));
       }
-      for (std::size_t i : {std::size_t{0}, std::size_t{1}, std::size_t{777}, c.hop() - 1}) {
+      for (std::size_t i : {std::size_t{0}, std::size_t{1}, std::size_t{777} % c.hop(), c.hop() - 1}) {
         const std::complex<double> z = c.baseband_lag(0, i);
         worst_lag = std::max(worst_lag, std::abs(z - std::complex<double>(c.real(0)[i], c.imag(0)[i])));
       }
       c.advance(0);
       ++windows;
     }
-    EXPECT_GE(windows, 5u);
-    EXPECT_LT(worst, 1e-2 * peak);
+    EXPECT_GE(windows, 5u) << "hop " << hop;
+    EXPECT_LT(worst, 1e-2 * peak) << "hop " << hop;
     EXPECT_LT(worst_lag, 1e-2 * peak);
   }
 }

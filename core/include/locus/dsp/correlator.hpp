@@ -19,8 +19,8 @@
 // Streaming: the correlator keeps, per channel, a window of N = fft_size() input samples. push()
 // appends samples until the window is full; then the caller runs transform() (forward FFT of that
 // window, spectrum() becomes valid; a pre-screen may inspect it), correlate(t) for the templates it
-// wants (outputs valid for hop() = N - L_max + 1 lags), and advance() (keeps the last L_max - 1
-// samples). Every output lag is produced exactly once; nothing depends on how the input is cut into
+// wants (outputs valid for hop() = N - L_max + 1 lags, or fewer: Options::hop), and advance() (keeps
+// the last N - hop() samples). Every output lag is produced exactly once; nothing depends on how the input is cut into
 // blocks. flush() correlates a partly filled window (zero padded) for the lags whose template lies
 // entirely in the samples pushed so far (end of stream, or before a gap).
 //
@@ -28,6 +28,7 @@
 // push/transform/correlate/advance/flush/reset never allocate, lock or block ([RT]).
 #pragma once
 
+#include <algorithm>
 #include <complex>
 #include <cstddef>
 #include <cstdint>
@@ -61,6 +62,13 @@ class Correlator {
     std::size_t fft_size = 0;   ///< N; 0 = automatic (bit_ceil(4 * longest template), at least 256)
     bool analytic = true;       ///< also produce the Hilbert (quadrature) part of every output
     bool baseband = false;      ///< also plan the decimated complex-baseband outputs (see correlate_baseband)
+    /// Output lags per window; 0 (and anything larger) = N - L_max + 1, the plain overlap-save hop.
+    /// A smaller hop overlaps the windows (advance() keeps N - hop samples) and outputs each window's
+    /// LAST hop valid lags: a window is due after every `hop` new samples, so a lag is output at most
+    /// hop samples after its template became whole, for (N - L_max + 1) / hop times the work. hop()
+    /// may be up to 3 lower than asked (outputs stay on the baseband grid). Everything below
+    /// (window_start, samples, real/imag, baseband, flush) is then relative to the first OUTPUT lag.
+    std::size_t hop = 0;
   };
 
   Correlator();
@@ -74,7 +82,7 @@ class Correlator {
   void configure(const std::vector<std::vector<float>>& templates, FftPlanner& planner, const Options& options);
 
   std::size_t fft_size() const noexcept { return n_; }
-  /// Output lags produced per full window: N - L_max + 1.
+  /// Output lags produced per full window: N - L_max + 1, or Options::hop when smaller.
   std::size_t hop() const noexcept { return hop_; }
   std::size_t channels() const noexcept { return channels_; }
   std::size_t template_count() const noexcept { return templates_; }
@@ -93,13 +101,13 @@ class Correlator {
   /// [RT] True when channel ch's window holds N samples (transform/correlate/advance are due).
   bool full(std::size_t ch) const noexcept { return fill_[ch] == n_; }
   /// Samples currently in channel ch's window.
-  std::size_t filled(std::size_t ch) const noexcept { return fill_[ch]; }
+  std::size_t filled(std::size_t ch) const noexcept { return fill_[ch] - off_; }
   /// Channel ch's window: sample i is input sample window_start(ch) + i (filled(ch) of them), so the
   /// samples under output i are samples(ch)[i .. i + L - 1]. Valid until the next push/advance.
-  const float* samples(std::size_t ch) const noexcept { return &window_[ch * n_]; }
+  const float* samples(std::size_t ch) const noexcept { return &window_[ch * n_ + off_]; }
   /// [RT] The same window, writable: a caller may change samples after transform() (e.g. subtract a
   /// known signal, dsp::EmissionCanceller); what advance() keeps carries into the next window.
-  float* samples_mutable(std::size_t ch) noexcept { return &window_[ch * n_]; }
+  float* samples_mutable(std::size_t ch) noexcept { return &window_[ch * n_ + off_]; }
   /// Lag (input sample index since the last reset) of output 0 of channel ch's current window.
   std::uint64_t window_start(std::size_t ch) const noexcept { return start_[ch]; }
 
@@ -113,8 +121,15 @@ class Correlator {
   /// analytic) is the output at lag window_start + i, for i < hop() (after a full window) or
   /// i < valid lags (after flush()).
   void correlate(std::size_t t) noexcept;
-  const float* real(std::size_t t) const noexcept { return &out_re_[t * n_]; }
-  const float* imag(std::size_t t) const noexcept { return analytic_ ? &out_im_[t * n_] : nullptr; }
+  /// Overlapped windows (Options::hop): how many lags BEFORE output 0 the last correlate() of channel
+  /// ch produced as well: real(t)[-i], imag(t)[-i] (and baseband(t)[-i / D]) for 0 < i <= lookback(ch)
+  /// are lags earlier windows already output (the same values), back to the last reset. A statistic
+  /// over a window's whole span (a noise median) can use them. 0 without Options::hop.
+  std::size_t lookback(std::size_t ch) const noexcept {
+    return static_cast<std::size_t>(std::min<std::uint64_t>(off_, start_[ch] - segment_[ch]));
+  }
+  const float* real(std::size_t t) const noexcept { return &out_re_[t * n_ + off_]; }
+  const float* imag(std::size_t t) const noexcept { return analytic_ ? &out_im_[t * n_ + off_] : nullptr; }
 
   /// Complex-baseband decimation D of template t: 4 or 2 when its band (bins within -40 dB of its
   /// spectral peak) fits in N/D bins of the analytic spectrum, else 1 (no baseband output; also 1
@@ -128,12 +143,13 @@ class Correlator {
   /// the bins in the band): |baseband(t)[m]| = |z[window_start + m D]| for m < N/D (the phase is
   /// turned by a linear term; use baseband_lag() for the true value). Requires D > 1.
   void correlate_baseband(std::size_t t) noexcept;
-  const std::complex<float>* baseband(std::size_t t) const noexcept { return bb_fft_[t]->output(); }
+  const std::complex<float>* baseband(std::size_t t) const noexcept { return bb_fft_[t]->output() + off_ / bb_dec_[t]; }
   /// [RT] The analytic output z = real + j imag at lag window_start + i from the last
   /// correlate_baseband(t) (direct sum over the N/D band bins, O(N/D)).
   std::complex<float> baseband_lag(std::size_t t, std::size_t i) const noexcept;
 
-  /// [RT] Drops the first hop() samples of a full window (keeps the last L_max - 1).
+  /// [RT] Drops the first hop() samples of a full window (keeps the last N - hop(), i.e. L_max - 1
+  /// without Options::hop).
   void advance(std::size_t ch) noexcept;
 
   /// [RT] For a partly filled window: transform() it zero padded and return how many lags have
@@ -147,6 +163,7 @@ class Correlator {
 
  private:
   std::size_t n_ = 0, hop_ = 0, lmax_ = 0, channels_ = 0, templates_ = 0;
+  std::size_t off_ = 0;  // overlapped windows (Options::hop): outputs start this many lags in
   bool analytic_ = true;
   std::unique_ptr<RealFft> fft_;
   std::vector<std::size_t> lengths_;
@@ -156,6 +173,7 @@ class Correlator {
   AlignedVector<float> window_;                 // channels x N
   std::vector<std::size_t> fill_;
   std::vector<std::uint64_t> start_;
+  std::vector<std::uint64_t> segment_;  // per channel: first lag since the last reset
   AlignedVector<std::complex<float>> spec_buf_;  // bins
   AlignedVector<std::complex<float>> prod_, prod_im_;  // bins (product, and its Hilbert part)
   AlignedVector<float> out_re_, out_im_;         // templates x N
