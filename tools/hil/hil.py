@@ -333,7 +333,8 @@ def main():
     ap.add_argument("--speed", type=float, default=1.0,
                     help="locble: scene seconds per wall second (the IMU's stamps are compressed too: the results "
                          "then depend on it, docs/room.md)")
-    ap.add_argument("--settle", type=float, default=2.0, help="locble: seconds the node runs on after the scene's end")
+    ap.add_argument("--settle", type=float, default=1.0,
+                    help="locble: seconds the node runs on after the scene's end before it is stopped (its final update)")
     args = ap.parse_args()
 
     names = subprocess.run([os.path.join(args.bin, "locus"), "plugins", "--json"], capture_output=True, text=True)

@@ -166,7 +166,8 @@ def hil_locble(args, bin_dir, out, run):
     bus = run.start("dbus-daemon", ["dbus-daemon", "--config-file=" + os.path.join(out, "bus.conf"), "--nofork", "--nopidfile"])
     wait_for(lambda: os.path.exists(sock), 20, "the private dbus-daemon's socket", [("dbus-daemon", bus)])
     env = dict(os.environ, DBUS_SYSTEM_BUS_ADDRESS="unix:path=" + sock)
-    mock = run.start("bluetoothd-dbusmock", ["/usr/bin/python3", "-m", "dbusmock", "--system", "--template", "bluez5"], env=env)
+    mock = run.start("bluetoothd-dbusmock", ["/usr/bin/python3", "-m", "dbusmock", "--system", "--template", "bluez5",
+                                               "--logfile", os.path.join(out, "logs", "dbusmock-calls.log")], env=env)
     mqtt_port, broker = start_mosquitto(run, out)
 
     print(f"== 3/5 locus feed (IMU -> fake IIO, advertisements -> BlueZ, speed {args.speed}); one locusd board "
@@ -232,8 +233,9 @@ def hil_locble(args, bin_dir, out, run):
     cpu = {k: 100.0 * (cpu_s(p) - cpu0[k]) / wall for k, p in pids.items()}
 
     print("== 4/5 stop the node (its final estimates), the feed, mosquitto, bluetoothd, the bus", flush=True)
+    stop_sent_ns = time.monotonic_ns()
+    rc = run.stop("node")  # SIGTERM: the localizer's final update goes out (and to the map) as it stops
     stop_sse.set()
-    rc = run.stop("node")
     if rc != 0:
         raise Failure(f"locusd exited with {rc}; see {out}/logs/node.log")
     with open(os.path.join(out, "logs", "node.log")) as f:
@@ -262,14 +264,17 @@ def hil_locble(args, bin_dir, out, run):
     # delivery: what the feed set, what the node's bluez source read, what reached its output
     m = re.search(r"(\d+) adverts?, (\d+) dropped", node_log)
     scanner = {"adverts": int(m.group(1)), "dropped": int(m.group(2))} if m else None
-    # latency: the last advertisement fed -> the last estimate update on the map before the stop; and
-    # every update's data time (its t_s: CLOCK_MONOTONIC live) -> the map
+    # latency: the last advertisement fed -> the last estimate update on the map. LocBLE updates every
+    # update_period_s of data time and once more when it stops; the scene's IMU ends with its last
+    # advertisement, so the update that includes it is the final one, published when the node is
+    # stopped (--settle s after the scene's end): the figure is split into that wait and the stop.
+    # Every update's data time (its t_s: CLOCK_MONOTONIC live) -> its arrival on the map, too.
     on_map = [(now, msg["event"]) for now, msg in events if msg["event"].get("type") == "estimate"]
     last_fed_ns = fed["last_advert_monotonic_s"] * 1e9
-    after = [now for now, _ in on_map if now >= last_fed_ns]
-    last_latency_ms = (max(now for now, _ in on_map) - last_fed_ns) / 1e6 if on_map else None
-    first_after_ms = (min(after) - last_fed_ns) / 1e6 if after else None
-    data_to_map_ms = sorted((now - e["t_s"] * 1e9) / 1e6 for now, e in on_map)
+    last_on_map_ns = max(now for now, _ in on_map) if on_map else None
+    last_latency_ms = (last_on_map_ns - last_fed_ns) / 1e6 if on_map else None
+    stop_to_map_ms = (last_on_map_ns - stop_sent_ns) / 1e6 if on_map and last_on_map_ns >= stop_sent_ns else None
+    data_to_map_ms = sorted((now - e["t_s"] * 1e9) / 1e6 for now, e in on_map if now < stop_sent_ns)  # periodic ones
     result = {
         "localizer": "locble", "layout": layout, "seed": None if args.scene else args.seed, "speed": args.speed,
         "observer": observer, "tags": len(tags),
@@ -285,7 +290,8 @@ def hil_locble(args, bin_dir, out, run):
         "feed_lateness_ms": {"imu_median": fed["imu_late_median_ms"], "imu_max": fed["imu_late_max_ms"],
                              "ble_median": fed["ble_late_median_ms"], "ble_max": fed["ble_late_max_ms"]},
         "latency_last_advert_to_last_update_ms": last_latency_ms,
-        "latency_last_advert_to_next_update_ms": first_after_ms,
+        "latency_last_advert_to_stop_ms": (stop_sent_ns - last_fed_ns) / 1e6, "latency_stop_to_final_update_ms": stop_to_map_ms,
+        "estimates_written": sum(1 for e in lines if e.get("type") == "estimate"),
         "latency_update_data_time_to_map_ms": data_to_map_ms, "estimates_on_map": len(on_map),
         "cpu_pct_of_one_core": cpu, "peak_rss_mb": peak_rss, "wall_s": wall, "map_url": map_url, "out": out,
     }
@@ -307,10 +313,12 @@ def hil_locble(args, bin_dir, out, run):
           f"IMU {fed['imu_late_median_ms']:.2f}/{fed['imu_late_max_ms']:.2f} ms, BLE {fed['ble_late_median_ms']:.2f}/"
           f"{fed['ble_late_max_ms']:.2f} ms")
     if on_map:
-        print(f"latency: last advertisement fed -> last estimate update on the map {last_latency_ms:.0f} ms"
-              + (f" (the first after it: {first_after_ms:.0f} ms)" if first_after_ms is not None else " (none after it)")
-              + f"; each update's data time -> map: median {statistics.median(data_to_map_ms):.1f} ms, "
-              f"max {max(data_to_map_ms):.1f} ms over {len(on_map)} estimates")
+        print(f"latency: last advertisement fed -> last estimate update on the map {last_latency_ms:.0f} ms (the node "
+              f"stopped {result['latency_last_advert_to_stop_ms']:.0f} ms after it, its final update on the map "
+              + (f"{stop_to_map_ms:.0f} ms after the stop" if stop_to_map_ms is not None else "never: none after the stop")
+              + "); each periodic update's data time -> map: "
+              + (f"median {statistics.median(data_to_map_ms):.1f} ms, max {max(data_to_map_ms):.1f} ms" if data_to_map_ms else "none")
+              + f"; {len(on_map)} of {result['estimates_written']} estimates on the map")
     else:
         print("latency: no estimate reached the map")
     print(f"CPU (% of one core over {wall:.1f} s): locusd {cpu['locusd']:.1f}, feed {cpu['feed']:.1f}, bluetoothd (dbusmock) "

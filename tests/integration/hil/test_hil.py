@@ -36,7 +36,7 @@ def processes_of(markers):
                 cmd = f.read().replace(b"\0", b" ").decode(errors="replace")
         except OSError:
             continue
-        if any(m in cmd for m in markers) and "test_hil.py" not in cmd:
+        if any(m in cmd for m in markers) and "test_hil" not in cmd:
             out.append((int(pid), cmd.strip()))
     return out
 
@@ -50,13 +50,15 @@ def leftovers(hil_pid, out):
 
 
 class Hil:
-    def __init__(self, args, name, extra):
+    """hil.py running in its own process group, its output read line by line (also test_hil_locble.py)."""
+
+    def __init__(self, args, name, extra, run=("amil", "--listeners", "4")):
         self.out = os.path.join(args.out, name)
         shutil.rmtree(self.out, ignore_errors=True)
         os.makedirs(self.out)
         self.log = open(os.path.join(args.out, name + ".log"), "w")
-        cmd = ["/usr/bin/python3", os.path.join(args.source, "tools", "hil", "hil.py"), "amil", "--bin", args.bin,
-               "--listeners", "4", "--out", self.out] + extra
+        cmd = ["/usr/bin/python3", os.path.join(args.source, "tools", "hil", "hil.py"), run[0], "--bin", args.bin,
+               "--out", self.out] + list(run[1:]) + extra
         self.p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
         self.lines = []
         self.queue = queue.Queue()
