@@ -313,12 +313,18 @@ def hil_locble(args, bin_dir, out, run):
           f"IMU {fed['imu_late_median_ms']:.2f}/{fed['imu_late_max_ms']:.2f} ms, BLE {fed['ble_late_median_ms']:.2f}/"
           f"{fed['ble_late_max_ms']:.2f} ms")
     if on_map:
-        print(f"latency: last advertisement fed -> last estimate update on the map {last_latency_ms:.0f} ms (the node "
-              f"stopped {result['latency_last_advert_to_stop_ms']:.0f} ms after it, its final update on the map "
-              + (f"{stop_to_map_ms:.0f} ms after the stop" if stop_to_map_ms is not None else "never: none after the stop")
-              + "); each periodic update's data time -> map: "
-              + (f"median {statistics.median(data_to_map_ms):.1f} ms, max {max(data_to_map_ms):.1f} ms" if data_to_map_ms else "none")
-              + f"; {len(on_map)} of {result['estimates_written']} estimates on the map")
+        if stop_to_map_ms is not None:
+            print(f"latency: last advertisement fed -> last estimate update on the map {last_latency_ms:.0f} ms (the node "
+                  f"stopped {result['latency_last_advert_to_stop_ms']:.0f} ms after it, its final update on the map "
+                  f"{stop_to_map_ms:.0f} ms after the stop"
+                  + f"); {len(on_map)} of {result['estimates_written']} estimates on the map")
+        else:
+            print(f"latency: the final update (at the stop, {result['latency_last_advert_to_stop_ms']:.0f} ms after the last "
+                  f"advertisement) did not reach the map before it closed ({len(on_map)} of {result['estimates_written']} "
+                  f"estimates on it); the last one on it came {abs(last_latency_ms):.0f} ms "
+                  f"{'after' if last_latency_ms >= 0 else 'before'} the last advertisement")
+        print("latency: each periodic update's data time -> map: "
+              + (f"median {statistics.median(data_to_map_ms):.1f} ms, max {max(data_to_map_ms):.1f} ms" if data_to_map_ms else "none"))
     else:
         print("latency: no estimate reached the map")
     print(f"CPU (% of one core over {wall:.1f} s): locusd {cpu['locusd']:.1f}, feed {cpu['feed']:.1f}, bluetoothd (dbusmock) "
