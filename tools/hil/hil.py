@@ -41,8 +41,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, os.path.join(ROOT, "tools", "scripts"))
 sys.path.insert(0, HERE)
-from hil_common import Failure, Run, read_jsonl, rss_mb, start_mosquitto, wait_for  # noqa: E402
-from map_measure import cpu_s, sse_client  # noqa: E402
+from hil_common import Failure, Run, read_jsonl, rss_mb, start_map_node, start_mosquitto, wait_for  # noqa: E402
+from map_measure import cpu_s  # noqa: E402
 import hil_locble  # noqa: E402
 
 import yaml  # noqa: E402
@@ -167,16 +167,8 @@ def hil_amil(args, bin_dir, out, run):
             yaml.safe_dump(cfg, f, sort_keys=False)
         cmd = [locusd, "--config", path]
         if ident == player and args.map != "off":
-            cmd += ["--http", args.map, "--http-param", f"title=HIL: {args.name} live (seed {args.seed})"]
-            p = run.start("node-" + ident, cmd, env=env, stdout=subprocess.PIPE)
-            line = p.stdout.readline()
-            if not line.startswith("map: "):
-                raise Failure(f"the player's locusd did not serve the map: {line!r}")
-            map_url = line.split(" ", 1)[1].strip()
-            print(f"   live map (open it now): {map_url}", flush=True)
-            host, port = map_url[len("http://"):].rstrip("/").rsplit(":", 1)
-            threading.Thread(target=sse_client, args=(host, int(port), [], stop_sse,
-                                                      lambda m, now: events.append((now, m))), daemon=True).start()
+            p, map_url = start_map_node(run, "node-" + ident, cmd, env, args.map, f"HIL: {args.name} live (seed {args.seed})",
+                                        events, stop_sse, f"{out}/logs/node-{ident}.log")
         else:
             p = run.start("node-" + ident, cmd, env=env)
         nodes[ident] = p

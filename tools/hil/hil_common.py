@@ -9,6 +9,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -109,3 +110,20 @@ def start_mosquitto(run, out):
             return s.connect_ex(("127.0.0.1", port)) == 0
     wait_for(broker_up, 20, "mosquitto", [("mosquitto", broker)])
     return port, broker
+
+
+def start_map_node(run, name, cmd, env, listen, title, events, stop_sse, log_hint):
+    """locusd `cmd` serving the live map at `listen` ([HOST:]PORT): started, its first stdout line
+    (`map: URL`) read and printed, and an SSE client (map_measure.sse_client) appending (arrival
+    CLOCK_MONOTONIC ns, message) to `events` until `stop_sse` is set. (process, url)."""
+    from map_measure import sse_client
+    p = run.start(name, cmd + ["--http", listen, "--http-param", f"title={title}"], env=env, stdout=subprocess.PIPE)
+    line = p.stdout.readline()
+    if not line.startswith("map: "):
+        raise Failure(f"{name} did not serve the map: {line!r}; see {log_hint}")
+    url = line.split(" ", 1)[1].strip()
+    print(f"   live map (open it now): {url}", flush=True)
+    host, port = url[len("http://"):].rstrip("/").rsplit(":", 1)
+    threading.Thread(target=sse_client, args=(host, int(port), [], stop_sse, lambda m, now: events.append((now, m))),
+                     daemon=True).start()
+    return p, url

@@ -31,7 +31,7 @@ import time
 
 import yaml
 
-from hil_common import Failure, read_jsonl, rss_mb, start_mosquitto, wait_for
+from hil_common import Failure, read_jsonl, rss_mb, start_map_node, start_mosquitto, wait_for
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -150,7 +150,7 @@ def feed_said(log, pattern):
 
 
 def hil_locble(args, bin_dir, out, run):
-    from map_measure import cpu_s, sse_client  # tools/scripts (hil.py puts it on the path)
+    from map_measure import cpu_s  # tools/scripts (hil_common puts it on the path)
     locus, locusd = os.path.join(bin_dir, "locus"), os.path.join(bin_dir, "locusd")
     os.makedirs(os.path.join(out, "logs"), exist_ok=True)
     what = f"--scene {args.scene}" if args.scene else f"locus simulate locble --seed {args.seed}"
@@ -187,17 +187,10 @@ def hil_locble(args, bin_dir, out, run):
     events, stop_sse = [], threading.Event()
     map_url = None
     if args.map != "off":
-        cmd += ["--http", args.map, "--http-param", f"title=HIL: locble live ({what})"]
-    node = run.start("node", cmd, env=env, stdout=subprocess.PIPE if args.map != "off" else None)
-    if args.map != "off":
-        line = node.stdout.readline()
-        if not line.startswith("map: "):
-            raise Failure(f"locusd did not serve the map: {line!r}; see {out}/logs/node.log")
-        map_url = line.split(" ", 1)[1].strip()
-        print(f"   live map (open it now): {map_url}", flush=True)
-        host, port = map_url[len("http://"):].rstrip("/").rsplit(":", 1)
-        threading.Thread(target=sse_client, args=(host, int(port), [], stop_sse,
-                                                  lambda m, now: events.append((now, m))), daemon=True).start()
+        node, map_url = start_map_node(run, "node", cmd, env, args.map, f"HIL: locble live ({what})", events, stop_sse,
+                                       f"{out}/logs/node.log")
+    else:
+        node = run.start("node", cmd, env=env)
     alive = [("locusd", node), ("feed", feed), ("dbusmock", mock), ("dbus-daemon", bus), ("mosquitto", broker)]
     wait_for(lambda: feed_said(feed_log, r"scene time 0 at CLOCK_MONOTONIC"), 60,
              "the node to open its IIO buffer and start discovery (locus feed starts the clock then)", alive)

@@ -126,13 +126,52 @@ def check_clean(hil, what, failures):
             pass
 
 
-def main():
+def check_interrupt(args, run, start_timeout_s, after_s, failures):
+    """Ctrl-C (SIGINT) to hil.py `after_s` after its map is up: exit 130, nothing left behind."""
+    hil = Hil(args, "interrupt", [], run)
+    if not hil.read_until(r"live map \(open it now\)", start_timeout_s):
+        failures.append("interrupt: hil.py never started its nodes:\n" + hil.text())
+    time.sleep(after_s)
+    hil.p.send_signal(signal.SIGINT)
+    status = hil.finish(60)
+    if status != 130:
+        failures.append(f"interrupt: hil.py exited {status} after SIGINT (expected 130):\n" + hil.text())
+    check_clean(hil, "interrupt", failures)
+
+
+def check_node_dies(args, run, start_timeout_s, marker, is_victim, expect, failures, after_s=0.0):
+    """A locusd whose command line names OUT/`marker` (and passes is_victim) SIGKILLed mid-run: hil.py
+    fails (exit 1) with `expect` in its output, nothing left behind."""
+    hil = Hil(args, "nodedies", [], run)
+    if not hil.read_until(r"live map \(open it now\)", start_timeout_s):
+        failures.append("nodedies: hil.py never started its nodes:\n" + hil.text())
+    time.sleep(after_s)
+    victims = [p for p in processes_of([os.path.join(hil.out, marker)]) if "locusd" in p[1] and is_victim(p[1])]
+    if victims:
+        os.kill(victims[0][0], signal.SIGKILL)
+    else:
+        failures.append("nodedies: no locusd found to kill")
+    status = hil.finish(120)
+    if status != 1 or expect not in hil.text():
+        failures.append(f"nodedies: hil.py exited {status} (expected 1, naming the node):\n" + hil.text())
+    else:
+        print("nodedies: " + next(line for line in hil.lines if "exited" in line))
+    check_clean(hil, "nodedies", failures)
+
+
+def parse_args():
+    """--bin (build/bin), --source (the checkout), --out (the tests' directory, created)."""
     ap = argparse.ArgumentParser()
     ap.add_argument("--bin", required=True)
     ap.add_argument("--source", required=True)
     ap.add_argument("--out", required=True)
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
+    return args
+
+
+def main():
+    args = parse_args()
     failures = []
 
     # 1. a passing run; one retry when its bars were missed while the room itself had xruns (a room
@@ -178,32 +217,8 @@ def main():
             failures.append("pass: no listener table printed")
     check_clean(hil, "pass", failures)
 
-    # 2. Ctrl-C while the nodes run
-    hil = Hil(args, "interrupt", [])
-    if not hil.read_until(r"live map \(open it now\)", 120):
-        failures.append("interrupt: hil.py never started its nodes:\n" + hil.text())
-    time.sleep(1.0)
-    hil.p.send_signal(signal.SIGINT)
-    status = hil.finish(60)
-    if status != 130:
-        failures.append(f"interrupt: hil.py exited {status} after SIGINT (expected 130):\n" + hil.text())
-    check_clean(hil, "interrupt", failures)
-
-    # 3. a node dies mid-run
-    hil = Hil(args, "nodedies", [])
-    if not hil.read_until(r"live map \(open it now\)", 120):
-        failures.append("nodedies: hil.py never started its nodes:\n" + hil.text())
-    victims = [p for p in processes_of([os.path.join(hil.out, "nodes")]) if "locusd" in p[1] and "player.yaml" not in p[1]]
-    if victims:
-        os.kill(victims[0][0], signal.SIGKILL)
-    else:
-        failures.append("nodedies: no listener locusd found to kill")
-    status = hil.finish(120)
-    if status != 1 or "exited" not in hil.text():
-        failures.append(f"nodedies: hil.py exited {status} (expected 1, naming the node):\n" + hil.text())
-    else:
-        print("nodedies: " + next(line for line in hil.lines if "exited" in line))
-    check_clean(hil, "nodedies", failures)
+    check_interrupt(args, ("amil", "--listeners", "4"), 120, 1.0, failures)
+    check_node_dies(args, ("amil", "--listeners", "4"), 120, "nodes", lambda cmd: "player.yaml" not in cmd, "exited", failures)
 
     for f in failures:
         print("FAIL: " + f, file=sys.stderr)

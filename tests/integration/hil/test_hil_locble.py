@@ -13,16 +13,13 @@ scene's IMU into a fake IIO device, its advertisements through BlueZ) and one lo
 After each: no dbus-daemon, dbusmock, mosquitto, locus feed or locusd of that run is left (their command
 lines name the run's directory). The figures of the passing run are printed; no timing is asserted.
 """
-import argparse
 import json
 import os
-import signal
 import subprocess
 import sys
-import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from test_hil import Hil, check_clean, processes_of  # noqa: E402
+from test_hil import Hil, check_clean, check_interrupt, check_node_dies, parse_args  # noqa: E402
 
 SEED = 1
 # Live and replay run the same detectors and localizer on the same samples; what differs live is each
@@ -33,12 +30,7 @@ TOLERANCE_M = 0.5
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--bin", required=True)
-    ap.add_argument("--source", required=True)
-    ap.add_argument("--out", required=True)
-    args = ap.parse_args()
-    os.makedirs(args.out, exist_ok=True)
+    args = parse_args()
     failures = []
     run = ("locble", "--seed", str(SEED))
 
@@ -89,33 +81,9 @@ def main():
             failures.append("pass: no locus eval table printed")
     check_clean(hil, "pass", failures)
 
-    # 2. Ctrl-C while the node runs
-    hil = Hil(args, "interrupt", [], run)
-    if not hil.read_until(r"live map \(open it now\)", 60):
-        failures.append("interrupt: hil.py never started its node:\n" + hil.text())
-    time.sleep(2.0)
-    hil.p.send_signal(signal.SIGINT)
-    status = hil.finish(60)
-    if status != 130:
-        failures.append(f"interrupt: hil.py exited {status} after SIGINT (expected 130):\n" + hil.text())
-    check_clean(hil, "interrupt", failures)
-
-    # 3. the node dies mid-run
-    hil = Hil(args, "nodedies", [], run)
-    if not hil.read_until(r"live map \(open it now\)", 60):
-        failures.append("nodedies: hil.py never started its node:\n" + hil.text())
-    time.sleep(2.0)
-    victims = [p for p in processes_of([os.path.join(hil.out, "node.yaml")]) if "locusd" in p[1]]
-    if victims:
-        os.kill(victims[0][0], signal.SIGKILL)
-    else:
-        failures.append("nodedies: no locusd found to kill")
-    status = hil.finish(60)
-    if status != 1 or "locusd exited" not in hil.text():
-        failures.append(f"nodedies: hil.py exited {status} (expected 1, naming locusd):\n" + hil.text())
-    else:
-        print("nodedies: " + next(line for line in hil.lines if "exited" in line))
-    check_clean(hil, "nodedies", failures)
+    # 2. Ctrl-C while the node runs; 3. the node dies mid-run
+    check_interrupt(args, run, 60, 2.0, failures)
+    check_node_dies(args, run, 60, "node.yaml", lambda cmd: True, "locusd exited", failures, after_s=2.0)
 
     for f in failures:
         print("FAIL: " + f, file=sys.stderr)
