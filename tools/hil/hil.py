@@ -1,6 +1,9 @@
 #!/usr/bin/python3
 """Hardware-in-the-loop run of a localizer (`./run hil NAME`, docs/room.md): live nodes in a virtual room.
 
+`locble` is hil_locble.py (BlueZ through dbusmock and a fake IIO IMU, played by `locus feed`); the process
+runner and the other pieces both runs use are hil_common.py. This file: the command line and `amil`.
+
 For `amil`: simulates the layout (`locus simulate amil`: the player's triangle gesture and 12 listeners;
 the live protocol: the player pauses 0.8-1.0 s at each corner, long enough for its beep), then starts
   - jackd (dummy driver, its own server name, synchronous, one period of --period frames, real-time
