@@ -114,18 +114,45 @@ class MockBluez {
       if (!stop.sleep_until(monotonic_s() + 0.05)) throw std::runtime_error("interrupted");
     }
     root_ = sdbus::createProxy(*conn_, "org.bluez", "/");
-    std::string path;
-    root_->callMethod("AddAdapter").onInterface("org.bluez.Mock").withArguments(adapter, std::string("locus-feed")).storeResultsTo(path);
-    adapter_proxy_ = sdbus::createProxy(*conn_, "org.bluez", path);
+    root_->callMethod("AddAdapter").onInterface("org.bluez.Mock").withArguments(adapter, std::string("locus-feed")).storeResultsTo(adapter_path_);
+    adapter_proxy_ = sdbus::createProxy(*conn_, "org.bluez", adapter_path_);
   }
 
-  void add_tag(const std::string& address, std::optional<std::int16_t> tx_power) {
-    std::string path;
-    root_->callMethod("AddDevice").onInterface("org.bluez.Mock").withArguments(adapter_, address, address).storeResultsTo(path);
+  bool known(const std::string& address) const { return tags_.count(address) != 0; }
+
+  /// A tag's first advertisement: as bluetoothd announces a newly discovered device, its Device1 object
+  /// appears with the advertisement's RSSI (and TxPower) in one InterfacesAdded (dbusmock: AddObject,
+  /// then the signal from the object manager at "/", as its own AddDevice does).
+  void discover(const std::string& address, std::int16_t rssi, std::optional<std::int16_t> tx_power) {
+    std::string dev = "dev_" + address;
+    std::replace(dev.begin(), dev.end(), ':', '_');
+    const std::string path = adapter_path_ + "/" + dev;
+    std::map<std::string, sdbus::Variant> props{
+        {"Address", sdbus::Variant(address)},
+        {"AddressType", sdbus::Variant(std::string("public"))},
+        {"Alias", sdbus::Variant(address)},
+        {"Adapter", sdbus::Variant(sdbus::ObjectPath(adapter_path_))},
+        {"Paired", sdbus::Variant(false)},
+        {"Connected", sdbus::Variant(false)},
+        {"Trusted", sdbus::Variant(false)},
+        {"Blocked", sdbus::Variant(false)},
+        {"LegacyPairing", sdbus::Variant(false)},
+        {"ServicesResolved", sdbus::Variant(false)},
+        {"UUIDs", sdbus::Variant(std::vector<std::string>{})},
+        {"RSSI", sdbus::Variant(rssi)},
+    };
+    if (tx_power) props.emplace("TxPower", sdbus::Variant(*tx_power));
+    root_->callMethod("AddObject").onInterface("org.freedesktop.DBus.Mock")
+        .withArguments(path, std::string("org.bluez.Device1"), props,
+                       std::vector<sdbus::Struct<std::string, std::string, std::string, std::string>>{});
+    const std::map<std::string, std::map<std::string, sdbus::Variant>> interfaces{{"org.bluez.Device1", props}};
+    root_->callMethod("EmitSignal").onInterface("org.freedesktop.DBus.Mock")
+        .withArguments(std::string("org.freedesktop.DBus.ObjectManager"), std::string("InterfacesAdded"), std::string("oa{sa{sv}}"),
+                       std::vector<sdbus::Variant>{sdbus::Variant(sdbus::ObjectPath(path)), sdbus::Variant(interfaces)});
     Tag t;
     t.proxy = sdbus::createProxy(*conn_, "org.bluez", path);
+    t.tx_power = tx_power;
     tags_.emplace(address, std::move(t));
-    if (tx_power) set_tx_power(address, *tx_power);
   }
   void set_tx_power(const std::string& address, std::int16_t dbm) {
     Tag& t = tags_.at(address);
@@ -148,7 +175,7 @@ class MockBluez {
     t.proxy->callMethod("Set").onInterface("org.freedesktop.DBus.Properties")
         .withArguments(std::string("org.bluez.Device1"), std::string(property), sdbus::Variant(v));
   }
-  std::string adapter_;
+  std::string adapter_, adapter_path_;
   std::unique_ptr<sdbus::IConnection> conn_;
   std::unique_ptr<sdbus::IProxy> root_, adapter_proxy_;
   std::map<std::string, Tag> tags_;
@@ -254,15 +281,8 @@ int run_feed(const FeedOptions& opts) {
   if (opts.ble) {
     try {
       bluez = std::make_unique<MockBluez>(opts.adapter, opts.start_timeout_s, stop);
-      for (const BleAdvertisement& a : ble) {
-        const std::string address = scene::format_ble_address(a.address);
-        try {
-          (void)bluez->tx_power(address);
-        } catch (const std::out_of_range&) {
-          bluez->add_tag(address, a.has_tx_power ? std::optional<std::int16_t>(std::int16_t(std::lround(a.tx_power_dbm))) : std::nullopt);
-        }
+      for (const BleAdvertisement& a : ble)
         if (std::abs(a.rssi_dbm - std::round(a.rssi_dbm)) > 1e-6) ++rounded;
-      }
     } catch (const std::exception& e) {
       std::cerr << "locus feed: BlueZ (" << (std::getenv("DBUS_SYSTEM_BUS_ADDRESS") ? std::getenv("DBUS_SYSTEM_BUS_ADDRESS") : "the system bus")
                 << "): " << e.what() << "\n";
@@ -334,9 +354,14 @@ int run_feed(const FeedOptions& opts) {
       const BleAdvertisement& a = ble[r.index];
       const std::string address = scene::format_ble_address(a.address);
       try {
-        if (a.has_tx_power && bluez->tx_power(address) != std::int16_t(std::lround(a.tx_power_dbm)))
-          bluez->set_tx_power(address, std::int16_t(std::lround(a.tx_power_dbm)));
-        bluez->set_rssi(address, std::int16_t(std::lround(a.rssi_dbm)));
+        const auto rssi = std::int16_t(std::lround(a.rssi_dbm));
+        const auto tx = a.has_tx_power ? std::optional<std::int16_t>(std::int16_t(std::lround(a.tx_power_dbm))) : std::nullopt;
+        if (!bluez->known(address)) {
+          bluez->discover(address, rssi, tx);
+        } else {
+          if (tx && bluez->tx_power(address) != *tx) bluez->set_tx_power(address, *tx);
+          bluez->set_rssi(address, rssi);
+        }
         const double now = monotonic_s();
         ++ble_fed;
         ble_late_ms.push_back(1e3 * (now - at(r.t_s)));

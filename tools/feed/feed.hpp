@@ -6,14 +6,13 @@
 //     that instant has passed; the full scale of each sensor is the LSM6DSL's smallest range that
 //     holds the recording (printed);
 //   - ble.csv -> BlueZ's D-Bus API as python3-dbusmock's `bluez5` template serves it (the private system
-//     bus of $DBUS_SYSTEM_BUS_ADDRESS): an adapter, one org.bluez.Device1 per tag (its TxPower when the
-//     scene gives one), and per row one `RSSI` property change of its tag at the row's instant — what
-//     bluetoothd does for each advertisement once a discovery filter is set (docs/hal-bluez.md).
-// The tags' device objects exist before the node scans: dbusmock's AddDevice announces an arbitrary
-// RSSI (-79) with the object, which a scanning node would take for an advertisement; bluetoothd
-// announces a device with the RSSI of its first advertisement instead (see the report's limits).
+//     bus of $DBUS_SYSTEM_BUS_ADDRESS): an adapter; a tag's first advertisement makes its
+//     org.bluez.Device1 object appear with that RSSI (and TxPower) in one InterfacesAdded, as
+//     bluetoothd announces a discovered device; each later one is one `RSSI` property change at the
+//     row's instant — what bluetoothd does per advertisement once a discovery filter is set
+//     (docs/hal-bluez.md). (dbusmock's own AddDevice would announce an arbitrary RSSI of -79.)
 //
-// Protocol on stdout (tools/hil/hil.py reads it): `feed: ready ...` once the tree and the tags exist;
+// Protocol on stdout (tools/hil/hil.py reads it): `feed: ready ...` once the tree and the adapter exist;
 // the clock starts when the node has opened the IIO buffer and the adapter is discovering, then
 // `feed: scene time 0 at CLOCK_MONOTONIC <s> s (speed <x>)`; at the end one `feed: done ...` line
 // with the counts, the lateness of the writes and the instant of the last advertisement. It then
