@@ -19,7 +19,7 @@ import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from test_hil import Hil, check_clean, check_interrupt, check_node_dies, parse_args  # noqa: E402
+from test_hil import check_clean, check_interrupt, check_node_dies, parse_args, pass_run  # noqa: E402
 
 SEED = 1
 # Live and replay run the same detectors and localizer on the same samples; what differs live is each
@@ -81,19 +81,8 @@ def main():
     # 6 runs, 3 advertisements 30-52 ms late; docs/room.md). Every other check fails at once.
     for attempt in (1, 2):
         tries, late, tolerance_missed = [], 0.0, False
-        result_json = os.path.join(args.out, "pass.json")
-        if os.path.exists(result_json):
-            os.remove(result_json)
-        hil = Hil(args, "pass", ["--json", result_json], run)
-        status = hil.finish(180)
-        print(hil.text())
-        if status != 0:
-            tries.append(f"pass: hil.py exited {status} (expected 0); logs in {hil.out}/logs")
-        elif not os.path.exists(result_json):
-            tries.append("pass: no --json figures written")
-        else:
-            with open(result_json) as f:
-                r = json.load(f)
+        hil, r = pass_run(args, run, 180, tries)
+        if r is not None:
             late = max(r["feed_lateness_ms"]["ble_max"], r["feed_lateness_ms"]["imu_max"])
             tolerance_missed = check_pass(args, hil, r, tries)
         if attempt == 1 and tolerance_missed and len(tries) == 1 and late > LATE_MS:
