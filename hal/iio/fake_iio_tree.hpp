@@ -13,7 +13,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <chrono>
 #include <cstdint>
 #include <cstdlib>
@@ -142,6 +144,11 @@ class FakeIioTree {
  private:
   std::string root_;
 };
+
+/// A reading in LSB of a channel of `scale` units per LSB, saturated to the s16 range (as the part does).
+inline std::int16_t to_lsb(double value, double scale) {
+  return static_cast<std::int16_t>(std::clamp(std::llround(value / scale), -32768LL, 32767LL));
+}
 
 /// One scan of add_imu()'s default layout with accel and gyro enabled (what the `iio` source enables):
 /// accel x/y/z, anglvel x/y/z as le:s16 (12 bytes), 4 bytes of padding, the le:s64 timestamp (ns):

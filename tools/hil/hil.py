@@ -1,6 +1,9 @@
 #!/usr/bin/python3
 """Hardware-in-the-loop run of a localizer (`./run hil NAME`, docs/room.md): live nodes in a virtual room.
 
+`locble` is hil_locble.py (BlueZ through dbusmock and a fake IIO IMU, played by `locus feed`); the process
+runner and the other pieces both runs use are hil_common.py. This file: the command line and `amil`.
+
 For `amil`: simulates the layout (`locus simulate amil`: the player's triangle gesture and 12 listeners;
 the live protocol: the player pauses 0.8-1.0 s at each corner, long enough for its beep), then starts
   - jackd (dummy driver, its own server name, synchronous, one period of --period frames, real-time
@@ -30,7 +33,6 @@ import os
 import re
 import shutil
 import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -41,77 +43,14 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, os.path.join(ROOT, "tools", "scripts"))
-from campaign_common import kill_group  # noqa: E402
-from map_measure import cpu_s, hwm_mb, sse_client  # noqa: E402
+sys.path.insert(0, HERE)
+from hil_common import Failure, Run, read_jsonl, rss_mb, start_map_node, start_mosquitto, wait_for  # noqa: E402
+from map_measure import cpu_s  # noqa: E402
+import hil_locble  # noqa: E402
 
 import yaml  # noqa: E402
 
-LIVE = {"amil"}  # localizers with a live HIL run
-
-
-class Failure(Exception):
-    pass
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def wait_for(cond, timeout_s, what, procs=()):
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        if cond():
-            return
-        for name, p in procs:
-            if p.poll() is not None:
-                raise Failure(f"{name} exited ({p.returncode}) while waiting for {what}")
-        time.sleep(0.05)
-    raise Failure(f"timed out after {timeout_s:.0f} s waiting for {what}")
-
-
-def rss_mb(pid):
-    """(VmRSS, RssShmem) in MB: the resident set, and its shared-memory part (JACK's segments,
-    mapped into every client)."""
-    rss = shm = float("nan")
-    with open(f"/proc/{pid}/status") as f:
-        for line in f:
-            if line.startswith("VmRSS:"):
-                rss = int(line.split()[1]) / 1024.0
-            elif line.startswith("RssShmem:"):
-                shm = int(line.split()[1]) / 1024.0
-    return rss, shm
-
-
-class Run:
-    """Every child process of the run, stopped in reverse order by close()."""
-
-    def __init__(self, out):
-        self.out = out
-        self.procs = []  # (name, Popen)
-
-    def start(self, name, cmd, env=None, stdout=None):
-        log = open(os.path.join(self.out, "logs", name + ".log"), "w")
-        p = subprocess.Popen(cmd, stdout=stdout if stdout is not None else log, stderr=log, stdin=subprocess.DEVNULL,
-                             env=env, start_new_session=True, text=True)
-        self.procs.append((name, p))
-        return p
-
-    def stop(self, name, timeout_s=20):
-        for n, p in self.procs:
-            if n == name and p.poll() is None:
-                p.send_signal(signal.SIGTERM)
-                try:
-                    p.wait(timeout=timeout_s)
-                except subprocess.TimeoutExpired:
-                    kill_group(p)
-                return p.returncode
-        return None
-
-    def close(self):
-        for _, p in reversed(self.procs):
-            kill_group(p)
+LIVE = {"amil", "locble"}  # localizers with a live HIL run (locble: hil_locble.py)
 
 
 def layout_for(args, bin_dir, out):
@@ -178,21 +117,6 @@ def node_config(args, dev, player, server, mqtt_port, room_out, out_jsonl, track
     }
 
 
-def read_jsonl(path):
-    out = []
-    if not os.path.exists(path):
-        return out
-    with open(path) as f:
-        for line in f:
-            line = line.strip()
-            if line:
-                try:
-                    out.append(json.loads(line))
-                except json.JSONDecodeError:
-                    pass  # a line being written
-    return out
-
-
 def hil_amil(args, bin_dir, out, run):
     locus, locusd = os.path.join(bin_dir, "locus"), os.path.join(bin_dir, "locusd")
     for d in ("logs", "nodes"):
@@ -208,15 +132,7 @@ def hil_amil(args, bin_dir, out, run):
     jackd = run.start("jackd", ["jackd", "-n", server, *rt, "-S", "-d", "dummy", "-r", "44100", "-p", str(args.period)], env=env)
     wait_for(lambda: subprocess.run(["jack_lsp", "-s", server], capture_output=True, env=env).returncode == 0, 20,
              "jackd to answer", [("jackd", jackd)])
-    mqtt_port = free_port()
-    with open(os.path.join(out, "mosquitto.conf"), "w") as f:
-        f.write(f"listener {mqtt_port} 127.0.0.1\nallow_anonymous true\npersistence false\n")
-    broker = run.start("mosquitto", ["mosquitto", "-c", os.path.join(out, "mosquitto.conf")])
-
-    def broker_up():
-        with socket.socket() as s:
-            return s.connect_ex(("127.0.0.1", mqtt_port)) == 0
-    wait_for(broker_up, 20, "mosquitto", [("mosquitto", broker)])
+    mqtt_port, broker = start_mosquitto(run, out)
 
     room_out = os.path.join(out, "run")
     origins_csv = os.path.join(out, "node_origins.csv")
@@ -254,16 +170,8 @@ def hil_amil(args, bin_dir, out, run):
             yaml.safe_dump(cfg, f, sort_keys=False)
         cmd = [locusd, "--config", path]
         if ident == player and args.map != "off":
-            cmd += ["--http", args.map, "--http-param", f"title=HIL: {args.name} live (seed {args.seed})"]
-            p = run.start("node-" + ident, cmd, env=env, stdout=subprocess.PIPE)
-            line = p.stdout.readline()
-            if not line.startswith("map: "):
-                raise Failure(f"the player's locusd did not serve the map: {line!r}")
-            map_url = line.split(" ", 1)[1].strip()
-            print(f"   live map (open it now): {map_url}", flush=True)
-            host, port = map_url[len("http://"):].rstrip("/").rsplit(":", 1)
-            threading.Thread(target=sse_client, args=(host, int(port), [], stop_sse,
-                                                      lambda m, now: events.append((now, m))), daemon=True).start()
+            p, map_url = start_map_node(run, "node-" + ident, cmd, env, args.map, f"HIL: {args.name} live (seed {args.seed})",
+                                        events, stop_sse, f"{out}/logs/node-{ident}.log")
         else:
             p = run.start("node-" + ident, cmd, env=env)
         nodes[ident] = p
@@ -398,7 +306,7 @@ def hil_amil(args, bin_dir, out, run):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("name", help="localizer (amil)")
+    ap.add_argument("name", help="localizer (amil, locble)")
     ap.add_argument("--bin", default=os.path.join(ROOT, "build", "bin"))
     ap.add_argument("--out", help="run directory (default: a fresh temporary one, printed)")
     ap.add_argument("--listeners", type=int, default=12, help="listeners of the layout (1..12)")
@@ -416,6 +324,12 @@ def main():
     ap.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the estimates after the layout")
     ap.add_argument("--json", help="write the figures here")
     ap.add_argument("--imu-events", action="store_true", help="the nodes also write their IMU samples (JSON lines)")
+    ap.add_argument("--scene", help="locble: the layout, any LocBLE scene (default: locus simulate locble --seed N)")
+    ap.add_argument("--speed", type=float, default=1.0,
+                    help="locble: scene seconds per wall second; only 1: the IMU's time base cannot be compressed "
+                         "honestly (docs/room.md)")
+    ap.add_argument("--settle", type=float, default=1.0,
+                    help="locble: seconds the node runs on after the scene's end before it is stopped (its final update)")
     args = ap.parse_args()
 
     names = subprocess.run([os.path.join(args.bin, "locus"), "plugins", "--json"], capture_output=True, text=True)
@@ -432,10 +346,23 @@ def main():
     if not 1 <= args.listeners <= 12:
         print("hil: --listeners: expected 1..12", file=sys.stderr)
         return 2
-    for tool in ("jackd", "jack_lsp", "mosquitto"):
-        if shutil.which(tool) is None:
-            print(f"hil: {tool} not found (tools/install-deps.sh installs it)", file=sys.stderr)
+    if args.name == "amil":
+        for tool in ("jackd", "jack_lsp", "mosquitto"):
+            if shutil.which(tool) is None:
+                print(f"hil: {tool} not found (tools/install-deps.sh installs it)", file=sys.stderr)
+                return 1
+    else:
+        missing = hil_locble.check_tools()
+        if missing:
+            print(f"hil: {missing}", file=sys.stderr)
             return 1
+        if args.speed != 1.0:
+            # The steps and attitude detectors integrate the IMU over its timestamps: played X times
+            # faster, the stamps shrink with the scene and the walk becomes another walk (faster steps,
+            # a turn X times smaller), which the scene's truth does not describe (docs/room.md).
+            print(f"hil: --speed {args.speed:g}: LocBLE's results depend on the IMU's time base, so its scene "
+                  "cannot be compressed honestly; only --speed 1 (real time)", file=sys.stderr)
+            return 2
     out = args.out or tempfile.mkdtemp(prefix=f"locus-hil-{args.name}-")
     os.makedirs(out, exist_ok=True)
     run = Run(out)
@@ -446,7 +373,10 @@ def main():
     status = 0
     t0 = time.monotonic()
     try:
-        hil_amil(args, args.bin, out, run)
+        if args.name == "amil":
+            hil_amil(args, args.bin, out, run)
+        else:
+            hil_locble.hil_locble(args, args.bin, out, run)
         print(f"hil finished in {time.monotonic() - t0:.1f} s; files in {out}")
     except Failure as e:
         print(f"hil: {e}", file=sys.stderr)

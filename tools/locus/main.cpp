@@ -10,6 +10,9 @@
 // Tool modules (tools/<name>/cli.hpp): one include and one line in `modules` below each.
 #include "devices/cli.hpp"
 #include "eval/cli.hpp"
+#ifdef LOCUS_WITH_FEED
+#include "feed/cli.hpp"
+#endif
 #include "record/cli.hpp"
 #include "replay/cli.hpp"
 #ifdef LOCUS_WITH_ROOM
@@ -36,6 +39,10 @@ int main(int argc, char** argv) {
   plugins->add_option("--plugin-dir", plugin_dirs, "also load every *.so in this directory (repeatable)");
   plugins->add_flag("--json", json, "machine-readable output");
 
+#ifndef LOCUS_WITH_FEED
+  auto* feed = cli.add_subcommand("feed", "play a scene's IMU and BLE into IIO and BlueZ (not built: it needs BlueZ)");
+  feed->allow_extras();
+#endif
 #ifndef LOCUS_WITH_ROOM
   auto* room = cli.add_subcommand("room", "a hardware-in-the-loop room (not built: it needs JACK)");
   room->allow_extras();
@@ -45,6 +52,9 @@ int main(int argc, char** argv) {
   std::vector<locus::app::Subcommand> modules = {
       locus::app::add_devices_command(cli),
       locus::app::add_eval_command(cli),
+#ifdef LOCUS_WITH_FEED
+      locus::app::add_feed_command(cli),
+#endif
       locus::app::add_record_command(cli),
       locus::app::add_replay_command(cli),
 #ifdef LOCUS_WITH_ROOM
@@ -66,6 +76,12 @@ int main(int argc, char** argv) {
   for (const auto& m : modules) {
     if (*m.cmd) return m.run();
   }
+#ifndef LOCUS_WITH_FEED
+  if (*feed) {
+    std::cerr << "locus feed: " << locus::build::not_built_reason(*locus::build::find_optional_backend("bluez")) << "\n";
+    return locus::app::kExitBadConfig;
+  }
+#endif
 #ifndef LOCUS_WITH_ROOM
   if (*room) {
     std::cerr << "locus room: " << locus::build::not_built_reason(*locus::build::find_optional_backend("jack")) << "\n";

@@ -1,5 +1,6 @@
 #include "map_server.hpp"
 
+#include <algorithm>
 #include <httplib.h>
 
 #include <arpa/inet.h>
@@ -254,6 +255,10 @@ void MapServer::routes() {
       }
     }
     auto last = std::make_shared<std::uint64_t>(start);
+    {
+      std::lock_guard lock(mutex_);
+      streams_.insert(last);
+    }
     res.set_header("Cache-Control", "no-store");
     res.set_header("X-Accel-Buffering", "no");
     res.set_chunked_content_provider(
@@ -278,11 +283,14 @@ void MapServer::routes() {
             }
           }
           if (out.empty()) out = ": keep-alive\n\n";  // also how a vanished client is noticed
-          return sink.write(out.data(), out.size());
+          const bool ok = sink.write(out.data(), out.size());
+          changed_.notify_all();  // stop() waits for every stream to have sent what it had
+          return ok;
         },
-        [this](bool) {
+        [this, last](bool) {
           std::lock_guard lock(mutex_);
           --stats_.clients_now;
+          streams_.erase(last);
         });
   });
   http_->set_error_handler([](const httplib::Request& req, httplib::Response& res) {
@@ -322,15 +330,23 @@ void MapServer::start() {
 void MapServer::stop() {
   if (!started_) return;
   started_ = false;
+  // What was handed over before stop() (a node's final estimates, published as it stops) reaches the
+  // open streams: the pump stops, the taps are drained once more here (their only consumer now), and
+  // every open stream gets up to kStopFlush to send the backlog up to that point; then they close.
+  pump_stop_.store(true);
+  if (pump_thread_.joinable()) pump_thread_.join();
+  drain_taps();
   {
-    std::lock_guard lock(mutex_);
+    std::unique_lock lock(mutex_);
+    const std::uint64_t target = seq_;
+    changed_.wait_for(lock, kStopFlush, [&] {
+      return std::all_of(streams_.begin(), streams_.end(), [&](const auto& last) { return *last >= target; });
+    });
     stopping_ = true;
   }
   changed_.notify_all();
-  pump_stop_.store(true);
   http_->stop();
   if (http_thread_.joinable()) http_thread_.join();
-  if (pump_thread_.joinable()) pump_thread_.join();
 }
 
 void MapServer::append_locked(std::string event_name, const nlohmann::ordered_json& data) {

@@ -26,6 +26,8 @@
 // write_timeout_s. tests/integration/map checks each with real sockets.
 #pragma once
 
+#include <chrono>
+#include <set>
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -136,7 +138,8 @@ class MapServer {
 
   /// [main] Starts the pump thread and the HTTP server.
   void start();
-  /// [main] Stops both; SSE clients are closed. Idempotent.
+  /// [main] Stops both; SSE clients are closed, once each has been sent (for at most kStopFlush) what
+  /// was handed over before the call. Idempotent.
   void stop();
 
   /// [any, not RT] One event as JSON (the JSON-lines shape) from `node`, e.g. received over MQTT.
@@ -177,6 +180,8 @@ class MapServer {
   };
   std::deque<Message> backlog_;
   std::uint64_t seq_ = 0;
+  std::set<std::shared_ptr<std::uint64_t>> streams_;  // each open /events stream: the last seq it sent
+  static constexpr std::chrono::milliseconds kStopFlush{1000};
   bool stopping_ = false;
   bool health_dirty_ = false;
   Stats stats_;

@@ -269,10 +269,6 @@ class ImuFeeder {
           rng(o.rng), accel_scale(o.accel_scale), gyro_scale(o.gyro_scale), fd(o.fd), written(o.written.load()), dropped(o.dropped.load()) {}
   };
 
-  static std::int16_t lsb(double v, double scale) {
-    return static_cast<std::int16_t>(std::clamp(std::llround(v / scale), -32768LL, 32767LL));
-  }
-
   void run() {
     // wait for the room's first cycle (the time base)
     while (!stop_ && !std::isfinite(jack_.monotonic_of(0.0))) std::this_thread::sleep_for(std::chrono::milliseconds(5));
@@ -299,9 +295,9 @@ class ImuFeeder {
         if (d.fd < 0) d.fd = ::open(d.fifo.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);  // ENXIO: no reader yet
         const sim::ImuReading r = d.imu->sample(*d.traj, std::nullopt, t, d.rng);  // every device's model advances
         if (d.fd < 0) continue;
-        const std::int16_t raw[6]{lsb(r.accel_mps2.x(), d.accel_scale), lsb(r.accel_mps2.y(), d.accel_scale),
-                                  lsb(r.accel_mps2.z(), d.accel_scale), lsb(r.gyro_radps.x(), d.gyro_scale),
-                                  lsb(r.gyro_radps.y(), d.gyro_scale), lsb(r.gyro_radps.z(), d.gyro_scale)};
+        const std::int16_t raw[6]{iio_fake::to_lsb(r.accel_mps2.x(), d.accel_scale), iio_fake::to_lsb(r.accel_mps2.y(), d.accel_scale),
+                                  iio_fake::to_lsb(r.accel_mps2.z(), d.accel_scale), iio_fake::to_lsb(r.gyro_radps.x(), d.gyro_scale),
+                                  iio_fake::to_lsb(r.gyro_radps.y(), d.gyro_scale), iio_fake::to_lsb(r.gyro_radps.z(), d.gyro_scale)};
         const std::vector<std::uint8_t> scan = iio_fake::pack_accel_gyro_scan(raw, ns);
         const ssize_t w = ::write(d.fd, scan.data(), scan.size());
         if (w == static_cast<ssize_t>(scan.size())) {

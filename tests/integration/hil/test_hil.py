@@ -36,7 +36,7 @@ def processes_of(markers):
                 cmd = f.read().replace(b"\0", b" ").decode(errors="replace")
         except OSError:
             continue
-        if any(m in cmd for m in markers) and "test_hil.py" not in cmd:
+        if any(m in cmd for m in markers) and "test_hil" not in cmd:
             out.append((int(pid), cmd.strip()))
     return out
 
@@ -50,13 +50,15 @@ def leftovers(hil_pid, out):
 
 
 class Hil:
-    def __init__(self, args, name, extra):
+    """hil.py running in its own process group, its output read line by line (also test_hil_locble.py)."""
+
+    def __init__(self, args, name, extra, run=("amil", "--listeners", "4")):
         self.out = os.path.join(args.out, name)
         shutil.rmtree(self.out, ignore_errors=True)
         os.makedirs(self.out)
         self.log = open(os.path.join(args.out, name + ".log"), "w")
-        cmd = ["/usr/bin/python3", os.path.join(args.source, "tools", "hil", "hil.py"), "amil", "--bin", args.bin,
-               "--listeners", "4", "--out", self.out] + extra
+        cmd = ["/usr/bin/python3", os.path.join(args.source, "tools", "hil", "hil.py"), run[0], "--bin", args.bin,
+               "--out", self.out] + list(run[1:]) + extra
         self.p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
         self.lines = []
         self.queue = queue.Queue()
@@ -124,28 +126,80 @@ def check_clean(hil, what, failures):
             pass
 
 
-def main():
+def check_interrupt(args, run, start_timeout_s, after_s, failures):
+    """Ctrl-C (SIGINT) to hil.py `after_s` after its map is up: exit 130, nothing left behind."""
+    hil = Hil(args, "interrupt", [], run)
+    if not hil.read_until(r"live map \(open it now\)", start_timeout_s):
+        failures.append("interrupt: hil.py never started its nodes:\n" + hil.text())
+    time.sleep(after_s)
+    hil.p.send_signal(signal.SIGINT)
+    status = hil.finish(60)
+    if status != 130:
+        failures.append(f"interrupt: hil.py exited {status} after SIGINT (expected 130):\n" + hil.text())
+    check_clean(hil, "interrupt", failures)
+
+
+def check_node_dies(args, run, start_timeout_s, marker, is_victim, expect, failures, after_s=0.0):
+    """A locusd whose command line names OUT/`marker` (and passes is_victim) SIGKILLed mid-run: hil.py
+    fails (exit 1) with `expect` in its output, nothing left behind."""
+    hil = Hil(args, "nodedies", [], run)
+    if not hil.read_until(r"live map \(open it now\)", start_timeout_s):
+        failures.append("nodedies: hil.py never started its nodes:\n" + hil.text())
+    time.sleep(after_s)
+    victims = [p for p in processes_of([os.path.join(hil.out, marker)]) if "locusd" in p[1] and is_victim(p[1])]
+    if victims:
+        os.kill(victims[0][0], signal.SIGKILL)
+    else:
+        failures.append("nodedies: no locusd found to kill")
+    status = hil.finish(120)
+    if status != 1 or expect not in hil.text():
+        failures.append(f"nodedies: hil.py exited {status} (expected 1, naming the node):\n" + hil.text())
+    else:
+        print("nodedies: " + next(line for line in hil.lines if "exited" in line))
+    check_clean(hil, "nodedies", failures)
+
+
+def parse_args():
+    """--bin (build/bin), --source (the checkout), --out (the tests' directory, created)."""
     ap = argparse.ArgumentParser()
     ap.add_argument("--bin", required=True)
     ap.add_argument("--source", required=True)
     ap.add_argument("--out", required=True)
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
+    return args
+
+
+def pass_run(args, run, timeout_s, problems):
+    """hil.py `run` with --json into OUT/pass: (hil, its figures or None); a non-zero exit or missing
+    figures are appended to `problems`."""
+    result_json = os.path.join(args.out, "pass.json")
+    if os.path.exists(result_json):
+        os.remove(result_json)
+    hil = Hil(args, "pass", ["--json", result_json], run)
+    status = hil.finish(timeout_s)
+    print(hil.text())
+    if status != 0:
+        problems.append(f"pass: hil.py exited {status} (expected 0); logs in {hil.out}/logs")
+        return hil, None
+    if not os.path.exists(result_json):
+        problems.append("pass: no --json figures written")
+        return hil, None
+    with open(result_json) as f:
+        return hil, json.load(f)
+
+
+def main():
+    args = parse_args()
     failures = []
 
     # 1. a passing run; one retry when its bars were missed while the room itself had xruns (a room
     # cycle missed chops the beep at every listener: the machine's load, which no node can see)
-    result_json = os.path.join(args.out, "pass.json")
     for attempt in (1, 2):
-        if os.path.exists(result_json):
-            os.remove(result_json)
-        hil = Hil(args, "pass", ["--json", result_json])
-        status = hil.finish(240)
-        print(hil.text())
-        if attempt == 2 or status != 0 or not os.path.exists(result_json):
+        problems = []
+        hil, r = pass_run(args, ("amil", "--listeners", "4"), 240, problems)
+        if attempt == 2 or r is None:
             break
-        with open(result_json) as f:
-            r = json.load(f)
         room_xruns = re.search(r"(\d+) xruns", r.get("room") or "")
         bars_met = r["located"] == r["expected"] == 4 and r["mean_direction_error_deg"] is not None and \
             r["mean_direction_error_deg"] <= 3.0
@@ -154,13 +208,8 @@ def main():
         print(f"retry: bars missed (direction {r['mean_direction_error_deg']} deg) while the room had "
               f"{room_xruns.group(1)} xruns; running once more")
         check_clean(hil, "pass (first attempt)", failures)
-    if status != 0:
-        failures.append(f"pass: hil.py exited {status} (expected 0); logs in {hil.out}/logs")
-    elif not os.path.exists(result_json):
-        failures.append("pass: no --json figures written")
-    else:
-        with open(result_json) as f:
-            r = json.load(f)
+    failures += problems
+    if r is not None:
         if not (r["located"] == r["expected"] == 4):
             failures.append(f"pass: located {r['located']}/{r['expected']} listeners (expected 4/4)")
         if r["mean_direction_error_deg"] is None or not r["mean_direction_error_deg"] <= 3.0:
@@ -176,32 +225,8 @@ def main():
             failures.append("pass: no listener table printed")
     check_clean(hil, "pass", failures)
 
-    # 2. Ctrl-C while the nodes run
-    hil = Hil(args, "interrupt", [])
-    if not hil.read_until(r"live map \(open it now\)", 120):
-        failures.append("interrupt: hil.py never started its nodes:\n" + hil.text())
-    time.sleep(1.0)
-    hil.p.send_signal(signal.SIGINT)
-    status = hil.finish(60)
-    if status != 130:
-        failures.append(f"interrupt: hil.py exited {status} after SIGINT (expected 130):\n" + hil.text())
-    check_clean(hil, "interrupt", failures)
-
-    # 3. a node dies mid-run
-    hil = Hil(args, "nodedies", [])
-    if not hil.read_until(r"live map \(open it now\)", 120):
-        failures.append("nodedies: hil.py never started its nodes:\n" + hil.text())
-    victims = [p for p in processes_of([os.path.join(hil.out, "nodes")]) if "locusd" in p[1] and "player.yaml" not in p[1]]
-    if victims:
-        os.kill(victims[0][0], signal.SIGKILL)
-    else:
-        failures.append("nodedies: no listener locusd found to kill")
-    status = hil.finish(120)
-    if status != 1 or "exited" not in hil.text():
-        failures.append(f"nodedies: hil.py exited {status} (expected 1, naming the node):\n" + hil.text())
-    else:
-        print("nodedies: " + next(line for line in hil.lines if "exited" in line))
-    check_clean(hil, "nodedies", failures)
+    check_interrupt(args, ("amil", "--listeners", "4"), 120, 1.0, failures)
+    check_node_dies(args, ("amil", "--listeners", "4"), 120, "nodes", lambda cmd: "player.yaml" not in cmd, "exited", failures)
 
     for f in failures:
         print("FAIL: " + f, file=sys.stderr)

@@ -298,6 +298,39 @@ TEST(MapHttp, AStreamThatIsNotReadNeverHoldsUpTheTapsOrOtherStreams) {
   EXPECT_EQ(map.stats().tap_dropped, 0u);
 }
 
+TEST(MapHttp, WhatWasHandedOverBeforeStopReachesTheOpenStreams) {
+  // A node's final estimates are handed over as it stops (LocBLE's last update, `./run hil locble`):
+  // stop() right after them must still send them to a connected stream before closing it.
+  QuietLog log;
+  auto map = std::make_unique<MapServer>(options(), log);
+  EventTap& tap = map->add_tap("n1");
+  map->start();
+  std::atomic<int> received{0};
+  std::atomic<bool> ready{false};
+  std::thread reader([&] {
+    httplib::Client c("127.0.0.1", map->port());
+    c.set_read_timeout(20, 0);
+    std::string buf;
+    c.Get("/events", [&](const char* d, std::size_t n) {
+      ready = true;
+      buf.append(d, n);
+      std::size_t pos;
+      while ((pos = buf.find("\n\n")) != std::string::npos) {
+        if (buf.find("event: locus") < pos) ++received;
+        buf.erase(0, pos + 2);
+      }
+      return true;  // until the server closes the stream
+    });
+  });
+  for (int i = 0; i < 500 && !ready; ++i) std::this_thread::sleep_for(10ms);  // the first keep-alive: open
+  ASSERT_TRUE(ready.load());
+  constexpr int kFinal = 3;
+  for (int i = 0; i < kFinal; ++i) ASSERT_TRUE(tap.push(make_estimate("final", i, 0.0)));
+  map->stop();  // at once: the pump has not necessarily drained the tap yet
+  reader.join();
+  EXPECT_EQ(received.load(), kFinal) << "events handed over before stop() were not sent to the open stream";
+}
+
 TEST(MapHttp, StreamsBeyondMaxClientsGet503) {
   QuietLog log;
   MapServer map(options({{"max_clients", "2"}}), log);
