@@ -14,6 +14,7 @@
 
 #include "locus/dsp/goertzel.hpp"
 #include "locus/dsp/iir.hpp"
+#include "locus/dsp/onset_fit.hpp"
 #include "locus/dsp/signals.hpp"
 
 namespace locus::plugins::multitone {
@@ -165,6 +166,12 @@ class MultitoneDetector final : public Detector {
     rel_ = std::pow(10.0, -params.get_float("relative_db") / 10.0);
     onset_thr_ = std::pow(10.0, params.get_float("onset_threshold_db") / 10.0);
     fit_len_ = static_cast<std::size_t>(std::llround(params.get_float("fit_window_s") * fs_));
+    paths_opt_ = dsp::OnsetPathsFit::Options{};
+    paths_opt_.oversample = kOs;
+    paths_opt_.max_paths = static_cast<std::size_t>(params.get_int("max_paths"));
+    paths_opt_.threshold = std::pow(10.0, params.get_float("path_threshold_db") / 10.0);
+    paths_opt_.tolerance = params.get_float("path_tolerance");
+    paths_opt_.back = std::round(params.get_float("path_search_s") * fs_);
 
     bank_ = dsp::GoertzelBank(tones_, fs_);
     const double kt = static_cast<double>(tones_.size());
@@ -201,7 +208,8 @@ class MultitoneDetector final : public Detector {
         fft_->forward(buf.data(), part == 0 ? spec_c_[k].data() : spec_s_[k].data());
       }
     }
-    fine_n_ = (fit_len_ + 2 * pre_ + 2 * onset_len_ + 68) * kOs;
+    fine_n_ = (std::max(fit_len_ + 2 * pre_ + 2 * onset_len_ + 68,
+                        static_cast<std::size_t>(paths_opt_.back) + 2 * pre_ + fit_len_ + 68)) * kOs;
     fine_s_.assign(tones_.size() * fine_n_, 0.0f);
     fine_c_.assign(tones_.size() * fine_n_, 0.0f);
     for (std::size_t k = 0; k < tones_.size(); ++k)
@@ -239,6 +247,14 @@ class MultitoneDetector final : public Detector {
     mt_s_.assign(fine_n_, 0.0f);
     mt_c_.assign(fine_n_, 0.0f);
     win_y_.assign(fit_len_ + 2 * pre_ + 2 * onset_len_ + 64, 0.0f);
+    // Multipath window: back samples before the single-path estimate (and pre_ more), fit_len_ after.
+    paths_opt_.known_phase = coherent_;
+    paths_opt_.ahead = std::max(0.0, static_cast<double>(fit_len_) - 16.0);
+    paths_len_ = static_cast<std::size_t>(paths_opt_.back) + pre_ + fit_len_;
+    if (paths_opt_.max_paths > 1 && paths_len_ + 1 > fine_n_ / kOs)
+      throw std::runtime_error("multitone: path_search_s + fit_window_s is too long for the onset templates");
+    paths_buf_.assign(std::max(paths_len_, noise_len_) + 1, 0.0f);
+    paths_.reserve(paths_buf_.size());
     env_.assign(len_ + tail_ + 2 * smooth_ + 2, 0.0);
     settle_ = static_cast<std::size_t>(std::llround(0.01 * fs_));
     bp_buf_.assign(frame_ + settle_ + len_ + tail_ + 2 * smooth_ + 4, 0.0f);
@@ -556,7 +572,26 @@ class MultitoneDetector final : public Detector {
       }
       centre = static_cast<double>(w0) + (static_cast<double>(best) + off) / static_cast<double>(kOs);
     }
-    const double arrival = centre;
+    double arrival = centre, timing_conf = 1.0;
+    // Multipath onset fit (dsp::OnsetPathsFit): the window from path_search_s before the single-path
+    // estimate to fit_window_s after it as up to max_paths delayed beeps; the first needed path is
+    // the direct one (the single-path fit is pulled towards the floor/ceiling echoes).
+    if (paths_opt_.max_paths > 1) {
+      const std::int64_t w0 = static_cast<std::int64_t>(std::floor(centre)) - static_cast<std::int64_t>(paths_opt_.back) -
+                              static_cast<std::int64_t>(pre_);
+      if (w0 >= static_cast<std::int64_t>(ch.start_frame) && static_cast<std::uint64_t>(w0) + paths_len_ <= ch.end_frame) {
+        for (std::size_t i = 0; i < noise_len_; ++i) paths_buf_[i] = seg_[i];
+        const double noise_var = paths_.noise_power(paths_buf_.data(), noise_len_, mt_c_.data(), mt_s_.data(), fine_n_, paths_opt_);
+        for (std::size_t n = 0; n < paths_len_; ++n) paths_buf_[n] = ch.raw[(static_cast<std::uint64_t>(w0) + n) & ring_mask_];
+        const dsp::OnsetPathsFit::Result r = paths_.fit(paths_buf_.data(), paths_len_, mt_c_.data(), mt_s_.data(), fine_n_,
+                                                        centre - static_cast<double>(w0), noise_var, paths_opt_);
+        if (r.paths > 0) {
+          arrival = static_cast<double>(w0) + r.first;
+          timing_conf = r.confidence;
+          amp = r.first_amplitude;
+        }
+      }
+    }
 
     AudioDetection d;
     d.device = device_;
@@ -567,7 +602,7 @@ class MultitoneDetector final : public Detector {
     d.frame = arrival;
     d.sample_rate_hz = fs_;
     d.snr_db = static_cast<float>(snr_db);
-    d.confidence = static_cast<float>(conf);
+    d.confidence = static_cast<float>(std::min(conf, timing_conf));
     d.amplitude = static_cast<float>(amp / std::max(1, std::popcount(mask)));
     if (!out.emit(Event{d})) ++dropped_;
 
@@ -640,7 +675,10 @@ class MultitoneDetector final : public Detector {
   std::vector<dsp::Biquad> sos_;
   std::unique_ptr<RealFft> fft_;
   std::vector<std::vector<cf>> spec_c_, spec_s_;
-  std::vector<float> fine_s_, fine_c_, mt_s_, mt_c_, win_y_, bp_buf_;
+  std::vector<float> fine_s_, fine_c_, mt_s_, mt_c_, win_y_, bp_buf_, paths_buf_;
+  dsp::OnsetPathsFit paths_;
+  dsp::OnsetPathsFit::Options paths_opt_;
+  std::size_t paths_len_ = 0;
   dsp::SosFilter bpf_;
   std::size_t settle_ = 441;
   double tone_energy_ = 1.0;
@@ -690,6 +728,14 @@ const ParamSchema& schema() {
       enum_param("fit_phase", "free", {"free", "known"},
                  "Onset fit: `free` = complex amplitude (any phase shift of the path), `known` = the format's sine phases (carrier-resolved; a path's phase shift biases it)."),
       float_param("fit_window_s", 0.003, 0.0005, 0.05, "s", "Onset fit window after the first path."),
+      int_param("max_paths", std::int64_t{3}, 1, 3, "",
+                "Paths of the multipath onset fit (direct + echoes; 1 = the single-path fit alone)."),
+      float_param("path_search_s", 0.0045, 0.0, 0.02, "s",
+                  "The first path is searched up to this long before the single-path estimate (floor/ceiling image delays)."),
+      float_param("path_threshold_db", 16.0, 3.0, 40.0, "dB",
+                  "A path of the multipath fit must explain this much over the in-band noise power (per sample)."),
+      float_param("path_tolerance", 0.02, 0.0, 0.5, "",
+                  "... plus this fraction of the window's energy (model mismatch: Doppler, device response)."),
   };
   return schema;
 }

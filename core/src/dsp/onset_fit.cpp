@@ -1,0 +1,209 @@
+// Multipath onset fit; design in locus/dsp/onset_fit.hpp.
+#include "locus/dsp/onset_fit.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace locus::dsp {
+
+namespace {
+constexpr std::size_t kMaxDim = 2 * OnsetPathsFit::kMaxPaths;
+
+// Solves G x = r (G symmetric positive semi-definite, d <= kMaxDim) by Cholesky with a relative
+// ridge; returns x·r (the explained energy) and x.
+double solve_explained(std::array<double, kMaxDim * kMaxDim>& g, std::array<double, kMaxDim>& r, std::size_t d,
+                       double* x) noexcept {
+  double tr = 0.0;
+  for (std::size_t i = 0; i < d; ++i) tr += g[i * kMaxDim + i];
+  if (!(tr > 0.0)) return 0.0;
+  const double ridge = 1e-9 * tr;
+  std::array<double, kMaxDim * kMaxDim> l{};
+  for (std::size_t i = 0; i < d; ++i) {
+    for (std::size_t j = 0; j <= i; ++j) {
+      double v = g[i * kMaxDim + j] + (i == j ? ridge : 0.0);
+      for (std::size_t k = 0; k < j; ++k) v -= l[i * kMaxDim + k] * l[j * kMaxDim + k];
+      if (i == j) {
+        if (!(v > 0.0)) return 0.0;
+        l[i * kMaxDim + i] = std::sqrt(v);
+      } else {
+        l[i * kMaxDim + j] = v / l[j * kMaxDim + j];
+      }
+    }
+  }
+  std::array<double, kMaxDim> z{};
+  for (std::size_t i = 0; i < d; ++i) {
+    double v = r[i];
+    for (std::size_t k = 0; k < i; ++k) v -= l[i * kMaxDim + k] * z[k];
+    z[i] = v / l[i * kMaxDim + i];
+  }
+  double e = 0.0;
+  for (std::size_t i = d; i-- > 0;) {
+    double v = z[i];
+    for (std::size_t k = i + 1; k < d; ++k) v -= l[k * kMaxDim + i] * x[k];
+    x[i] = v / l[i * kMaxDim + i];
+  }
+  for (std::size_t i = 0; i < d; ++i) e += x[i] * r[i];
+  return std::max(e, 0.0);
+}
+}  // namespace
+
+void OnsetPathsFit::reserve(std::size_t max_window) { y_.assign(max_window, 0.0); }
+
+double OnsetPathsFit::explained(const std::int64_t* tau8, std::size_t p, double* amp) const noexcept {
+  const std::size_t m = known_ ? 1 : 2, d = m * p;
+  std::array<double, kMaxDim * kMaxDim> g{};
+  std::array<double, kMaxDim> r{};
+  std::array<double, kMaxDim> v{};
+  const auto os = static_cast<std::int64_t>(os_);
+  std::int64_t lo = tau8[0];
+  for (std::size_t q = 1; q < p; ++q) lo = std::min(lo, tau8[q]);
+  const std::size_t n0 = lo <= 0 ? 0 : static_cast<std::size_t>((lo + os - 1) / os);
+  for (std::size_t n = n0; n < n_; ++n) {
+    bool any = false;
+    for (std::size_t q = 0; q < p; ++q) {
+      const std::int64_t u = static_cast<std::int64_t>(n) * os - tau8[q];
+      const bool in = u >= 0 && static_cast<std::size_t>(u) < fine_n_;
+      any |= in;
+      if (known_) {
+        v[q] = in ? s_[u] : 0.0;
+      } else {
+        v[2 * q] = in ? c_[u] : 0.0;
+        v[2 * q + 1] = in ? s_[u] : 0.0;
+      }
+    }
+    if (!any) continue;
+    const double yn = y_[n];
+    for (std::size_t i = 0; i < d; ++i) {
+      r[i] += yn * v[i];
+      for (std::size_t j = 0; j <= i; ++j) g[i * kMaxDim + j] += v[i] * v[j];
+    }
+  }
+  std::array<double, kMaxDim> x{};
+  const double e = solve_explained(g, r, d, x.data());
+  if (amp != nullptr)
+    for (std::size_t q = 0; q < p; ++q) amp[q] = known_ ? std::fabs(x[q]) : std::hypot(x[2 * q], x[2 * q + 1]);
+  return e;
+}
+
+std::int64_t OnsetPathsFit::refine(std::int64_t* tau8, std::size_t p, std::size_t which, std::int64_t range8,
+                                   std::int64_t step8, double& best_e) const noexcept {
+  const std::int64_t t0 = tau8[which];
+  std::int64_t best = t0;
+  for (std::int64_t t = t0 - range8; t <= t0 + range8; t += step8) {
+    tau8[which] = t;
+    const double e = explained(tau8, p, nullptr);
+    if (e > best_e) best_e = e, best = t;
+  }
+  tau8[which] = best;
+  return best;
+}
+
+double OnsetPathsFit::noise_power(const float* y, std::size_t n, const float* c, const float* s, std::size_t fine_n,
+                                  const Options& o) noexcept {
+  n_ = std::min(n, y_.size());
+  c_ = c;
+  s_ = s;
+  fine_n_ = fine_n;
+  os_ = std::max<std::size_t>(1, o.oversample);
+  known_ = o.known_phase;
+  for (std::size_t i = 0; i < n_; ++i) y_[i] = y[i];
+  const std::size_t len = fine_n_ / os_;  // template length in samples
+  if (n_ < len + 32) return 0.0;
+  double sum = 0.0;
+  std::size_t count = 0;
+  for (std::size_t start = 0; start + len <= n_; start += 32, ++count) {
+    const auto t8 = static_cast<std::int64_t>(start * os_);
+    sum += explained(&t8, 1, nullptr);
+  }
+  return count > 0 ? sum / static_cast<double>(count) / (known_ ? 1.0 : 2.0) : 0.0;
+}
+
+OnsetPathsFit::Result OnsetPathsFit::fit(const float* y, std::size_t n, const float* c, const float* s,
+                                         std::size_t fine_n, double tau0, double noise_var, const Options& o) noexcept {
+  Result res;
+  n_ = std::min(n, y_.size());
+  c_ = c;
+  s_ = s;
+  fine_n_ = fine_n;
+  os_ = std::max<std::size_t>(1, o.oversample);
+  known_ = o.known_phase;
+  if (n_ < 8 || fine_n_ == 0 || !(tau0 >= 0.0) || tau0 >= static_cast<double>(n_)) return res;
+  for (std::size_t i = 0; i < n_; ++i) {
+    y_[i] = y[i];
+    res.energy += y_[i] * y_[i];
+  }
+  const auto os = static_cast<std::int64_t>(os_);
+  const std::size_t max_p = std::clamp<std::size_t>(o.max_paths, 1, kMaxPaths);
+  const double thr = o.threshold * std::max(noise_var, 0.0) + o.tolerance * res.energy;
+  std::array<std::int64_t, kMaxPaths> tau{};
+  tau[0] = std::llround(tau0 * static_cast<double>(os));
+  std::size_t p = 1;
+  double e = explained(tau.data(), 1, nullptr);
+  const std::int64_t sep8 = std::llround(o.min_separation * static_cast<double>(os));
+  const std::int64_t step8 = std::max<std::int64_t>(1, std::llround(o.scan_step * static_cast<double>(os)));
+  const std::int64_t lo8 = std::max<std::int64_t>(0, tau[0] - std::llround(o.back * static_cast<double>(os)));
+  const std::int64_t hi8 = std::min<std::int64_t>(static_cast<std::int64_t>(n_ - 1) * os,
+                                                  tau[0] + std::llround(o.ahead * static_cast<double>(os)));
+  auto polish = [&](std::size_t rounds) {
+    for (std::size_t round = 0; round < rounds; ++round)
+      for (std::size_t q = 0; q < p; ++q) {
+        refine(tau.data(), p, q, os, std::max<std::int64_t>(1, os / 4), e);
+        refine(tau.data(), p, q, std::max<std::int64_t>(1, os / 4), 1, e);
+      }
+  };
+  while (p < max_p) {
+    double best_e = -1.0;
+    std::int64_t best_t = -1;
+    for (std::int64_t t = lo8; t <= hi8; t += step8) {
+      bool near = false;
+      for (std::size_t q = 0; q < p; ++q) near |= std::llabs(t - tau[q]) < sep8;
+      if (near) continue;
+      tau[p] = t;
+      const double et = explained(tau.data(), p + 1, nullptr);
+      if (et > best_e) best_e = et, best_t = t;
+    }
+    if (best_t < 0 || best_e - e < thr) break;
+    tau[p++] = best_t;
+    e = best_e;
+    polish(2);
+  }
+  std::sort(tau.begin(), tau.begin() + static_cast<std::ptrdiff_t>(p));
+  // The first needed path: removing it (the others re-fitted, delays kept) loses more than thr.
+  std::size_t first = p;
+  double need = 0.0;
+  for (std::size_t q = 0; q < p && first == p; ++q) {
+    std::array<std::int64_t, kMaxPaths> rest{};
+    std::size_t k = 0;
+    for (std::size_t j = 0; j < p; ++j)
+      if (j != q) rest[k++] = tau[j];
+    const double without = k > 0 ? explained(rest.data(), k, nullptr) : 0.0;
+    if (e - without > thr) first = q, need = e - without;
+  }
+  std::array<double, kMaxPaths> amp{};
+  res.explained = explained(tau.data(), p, amp.data());
+  res.paths = p;
+  for (std::size_t q = 0; q < p; ++q) {
+    res.delay[q] = static_cast<double>(tau[q]) / static_cast<double>(os);
+    res.amplitude[q] = amp[q];
+  }
+  if (first == p) {  // nothing clears the threshold: the strongest path, no confidence
+    first = static_cast<std::size_t>(std::max_element(amp.begin(), amp.begin() + static_cast<std::ptrdiff_t>(p)) - amp.begin());
+    need = 0.0;
+  }
+  // Parabolic vertex of the explained energy around the first path's delay (1/os grid).
+  const std::int64_t tf = tau[first];
+  tau[first] = tf - 1;
+  const double em = explained(tau.data(), p, nullptr);
+  tau[first] = tf + 1;
+  const double ep = explained(tau.data(), p, nullptr);
+  tau[first] = tf;
+  double off = 0.0;
+  const double den = em - 2.0 * res.explained + ep;
+  if (den < 0.0) off = std::clamp(0.5 * (em - ep) / den, -0.5, 0.5);
+  res.first = (static_cast<double>(tf) + off) / static_cast<double>(os);
+  res.first_amplitude = amp[first];
+  res.confidence = need > 0.0 ? std::clamp(1.0 - thr / need, 0.0, 1.0) : 0.0;
+  return res;
+}
+
+}  // namespace locus::dsp
