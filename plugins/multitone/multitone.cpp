@@ -172,6 +172,7 @@ class MultitoneDetector final : public Detector {
     paths_opt_.threshold = std::pow(10.0, params.get_float("path_threshold_db") / 10.0);
     paths_opt_.tolerance = params.get_float("path_tolerance");
     paths_opt_.back = std::round(params.get_float("path_search_s") * fs_);
+    carrier_phase_ = params.get_bool("carrier_phase");
 
     bank_ = dsp::GoertzelBank(tones_, fs_);
     const double kt = static_cast<double>(tones_.size());
@@ -583,8 +584,15 @@ class MultitoneDetector final : public Detector {
         for (std::size_t i = 0; i < noise_len_; ++i) paths_buf_[i] = seg_[i];
         const double noise_var = paths_.noise_power(paths_buf_.data(), noise_len_, mt_c_.data(), mt_s_.data(), fine_n_, paths_opt_);
         for (std::size_t n = 0; n < paths_len_; ++n) paths_buf_[n] = ch.raw[(static_cast<std::uint64_t>(w0) + n) & ring_mask_];
+        dsp::OnsetPathsFit::Options opt = paths_opt_;
+        if (carrier_phase_) {
+          double wsum = 0.0;
+          for (std::size_t k = 0; k < tones_.size(); ++k)
+            if ((mask >> k) & 1u) wsum += tones_[k];
+          opt.carrier_rad = 2.0 * kPi * wsum / std::max(1, std::popcount(mask)) / fs_;
+        }
         const dsp::OnsetPathsFit::Result r = paths_.fit(paths_buf_.data(), paths_len_, mt_c_.data(), mt_s_.data(), fine_n_,
-                                                        centre - static_cast<double>(w0), noise_var, paths_opt_);
+                                                        centre - static_cast<double>(w0), noise_var, opt);
         if (r.paths > 0) {
           arrival = static_cast<double>(w0) + r.first;
           timing_conf = r.confidence;
@@ -679,6 +687,7 @@ class MultitoneDetector final : public Detector {
   dsp::OnsetPathsFit paths_;
   dsp::OnsetPathsFit::Options paths_opt_;
   std::size_t paths_len_ = 0;
+  bool carrier_phase_ = true;
   dsp::SosFilter bpf_;
   std::size_t settle_ = 441;
   double tone_energy_ = 1.0;
@@ -734,6 +743,8 @@ const ParamSchema& schema() {
                   "The first path is searched up to this long before the single-path estimate (floor/ceiling image delays)."),
       float_param("path_threshold_db", 16.0, 3.0, 40.0, "dB",
                   "A path of the multipath fit must explain this much over the in-band noise power (per sample)."),
+      bool_param("carrier_phase", true,
+                 "First path from the carrier phase of its fitted amplitude (the cycle nearest the envelope fit; fit_phase free)."),
       float_param("path_tolerance", 0.02, 0.0, 0.5, "",
                   "... plus this fraction of the window's energy (model mismatch: Doppler, device response)."),
   };

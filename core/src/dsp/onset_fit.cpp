@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "locus/dsp/peak.hpp"
+
 namespace locus::dsp {
 
 namespace {
@@ -49,7 +51,7 @@ double solve_explained(std::array<double, kMaxDim * kMaxDim>& g, std::array<doub
 
 void OnsetPathsFit::reserve(std::size_t max_window) { y_.assign(max_window, 0.0); }
 
-double OnsetPathsFit::explained(const std::int64_t* tau8, std::size_t p, double* amp) const noexcept {
+double OnsetPathsFit::explained(const std::int64_t* tau8, std::size_t p, double* coef) const noexcept {
   const std::size_t m = known_ ? 1 : 2, d = m * p;
   std::array<double, kMaxDim * kMaxDim> g{};
   std::array<double, kMaxDim> r{};
@@ -80,8 +82,7 @@ double OnsetPathsFit::explained(const std::int64_t* tau8, std::size_t p, double*
   }
   std::array<double, kMaxDim> x{};
   const double e = solve_explained(g, r, d, x.data());
-  if (amp != nullptr)
-    for (std::size_t q = 0; q < p; ++q) amp[q] = known_ ? std::fabs(x[q]) : std::hypot(x[2 * q], x[2 * q + 1]);
+  if (coef != nullptr) std::copy(x.begin(), x.begin() + static_cast<std::ptrdiff_t>(d), coef);
   return e;
 }
 
@@ -179,8 +180,10 @@ OnsetPathsFit::Result OnsetPathsFit::fit(const float* y, std::size_t n, const fl
     const double without = k > 0 ? explained(rest.data(), k, nullptr) : 0.0;
     if (e - without > thr) first = q, need = e - without;
   }
+  std::array<double, kMaxDim> coef{};
   std::array<double, kMaxPaths> amp{};
-  res.explained = explained(tau.data(), p, amp.data());
+  res.explained = explained(tau.data(), p, coef.data());
+  for (std::size_t q = 0; q < p; ++q) amp[q] = known_ ? std::fabs(coef[q]) : std::hypot(coef[2 * q], coef[2 * q + 1]);
   res.paths = p;
   for (std::size_t q = 0; q < p; ++q) {
     res.delay[q] = static_cast<double>(tau[q]) / static_cast<double>(os);
@@ -201,6 +204,14 @@ OnsetPathsFit::Result OnsetPathsFit::fit(const float* y, std::size_t n, const fl
   const double den = em - 2.0 * res.explained + ep;
   if (den < 0.0) off = std::clamp(0.5 * (em - ep) / den, -0.5, 0.5);
   res.first = (static_cast<double>(tf) + off) / static_cast<double>(os);
+  res.envelope_first = res.first;
+  if (!known_ && o.carrier_rad > 0.0) {
+    // Carrier phase of the first path at its fitted delay: a copy delayed by δ more has (cos, sin)
+    // amplitudes ≈ g·(−sin ω_c δ, cos ω_c δ); the δ nearest 0 (within half a carrier period).
+    explained(tau.data(), p, coef.data());
+    res.first = static_cast<double>(tf) / static_cast<double>(os) +
+                phase_refine_near(coef[2 * first + 1], coef[2 * first], o.carrier_rad, off / static_cast<double>(os));
+  }
   res.first_amplitude = amp[first];
   res.confidence = need > 0.0 ? std::clamp(1.0 - thr / need, 0.0, 1.0) : 0.0;
   return res;

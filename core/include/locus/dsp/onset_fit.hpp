@@ -50,13 +50,16 @@ class OnsetPathsFit {
     double threshold = 40.0;        ///< a path must explain threshold·σ² (σ² = noise power per sample)
     double tolerance = 0.02;        ///< ... plus this fraction of the window's energy (model mismatch)
     bool known_phase = false;       ///< one real amplitude per path (sine part only)
+    double carrier_rad = 0.0;       ///< > 0: the first path's delay from its carrier phase (rad/sample:
+                                    ///< the waveform's centroid), the cycle nearest its envelope delay
   };
 
   struct Result {
     std::size_t paths = 0;                  ///< paths kept (0: nothing fitted, invalid input)
     std::array<double, kMaxPaths> delay{};  ///< window sample units, sorted ascending
     std::array<double, kMaxPaths> amplitude{};
-    double first = 0.0;       ///< the first needed path's delay
+    double first = 0.0;       ///< the first needed path's delay (carrier-refined with carrier_rad)
+    double envelope_first = 0.0;  ///< ... from the envelope (the free-phase fit) alone
     double first_amplitude = 0.0;
     double confidence = 0.0;  ///< lobe-choice confidence of `first`, [0, 1]
     double explained = 0.0;   ///< energy the final model explains
@@ -80,7 +83,7 @@ class OnsetPathsFit {
 
  private:
   // Energy explained by the paths at delays tau[0..p) (in 1/oversample units), least squares.
-  double explained(const std::int64_t* tau8, std::size_t p, double* amp) const noexcept;
+  double explained(const std::int64_t* tau8, std::size_t p, double* coef) const noexcept;
   // Best delay for path `which` within ±range8 (1/oversample units, step step8), others fixed.
   std::int64_t refine(std::int64_t* tau8, std::size_t p, std::size_t which, std::int64_t range8, std::int64_t step8,
                       double& best_e) const noexcept;
