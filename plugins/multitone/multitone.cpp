@@ -173,6 +173,7 @@ class MultitoneDetector final : public Detector {
     paths_opt_.tolerance = params.get_float("path_tolerance");
     paths_opt_.back = std::round(params.get_float("path_search_s") * fs_);
     carrier_phase_ = params.get_bool("carrier_phase");
+    doppler_ = params.get_bool("doppler");
 
     bank_ = dsp::GoertzelBank(tones_, fs_);
     const double kt = static_cast<double>(tones_.size());
@@ -181,6 +182,7 @@ class MultitoneDetector final : public Detector {
     for (std::size_t i = 0; i < frame_; ++i) win_[i] = static_cast<float>(0.5 - 0.5 * std::cos(2 * kPi * (i + 0.5) / frame_));
     double spacing = tones_.size() > 1 ? tones_[1] - tones_[0] : 250.0;
     for (std::size_t k = 2; k < tones_.size(); ++k) spacing = std::min(spacing, tones_[k] - tones_[k - 1]);
+    doppler_len_ = static_cast<std::size_t>(std::llround(2.0 * fs_ / spacing));  // two periods of the tone grid
     sos_ = dsp::butter_bandpass(4, std::max(1.0, tones_.front() - spacing), std::min(fs_ / 2.0 * 0.999, tones_.back() + spacing), fs_);
 
     len_ = static_cast<std::size_t>(std::llround(duration_s_ * fs_));
@@ -445,6 +447,37 @@ class MultitoneDetector final : public Detector {
     return mask;
   }
 
+  // [RT] Doppler time scale 1 + η of the beep body ch.raw[start, start + n): per identity tone, the
+  // mean phase advance between demodulated windows of two tone-grid periods (the other tones of the
+  // grid null out), hop_doppler_ apart (unambiguous up to ±fs/(2·hop) Hz), over ω·hop gives η;
+  // weighted by the windows' power. 1 when the body is too short or holds no tone.
+  double doppler_scale(const Channel& ch, std::int64_t start, std::size_t n, std::uint32_t mask) const noexcept {
+    const std::size_t lw = doppler_len_, h = std::max<std::size_t>(1, doppler_len_ / 4);
+    if (start < static_cast<std::int64_t>(ch.start_frame) || static_cast<std::uint64_t>(start) + n > ch.end_frame || n < lw + 2 * h)
+      return 1.0;
+    double num = 0.0, den = 0.0;
+    for (std::size_t k = 0; k < tones_.size(); ++k) {
+      if (!((mask >> k) & 1u)) continue;
+      const double w = 2.0 * kPi * tones_[k] / fs_;
+      const std::complex<double> rot = std::polar(1.0, -w);
+      std::complex<double> acc = 0.0, prev = 0.0;
+      for (std::size_t m = 0; m * h + lw <= n; ++m) {
+        std::complex<double> z = 0.0, ph = std::polar(1.0, -w * static_cast<double>(m * h));
+        for (std::size_t i = 0; i < lw; ++i) {
+          z += static_cast<double>(ch.raw[(static_cast<std::uint64_t>(start) + m * h + i) & ring_mask_]) * ph;
+          ph *= rot;
+        }
+        if (m > 0) acc += z * std::conj(prev);
+        prev = z;
+      }
+      const double mag = std::abs(acc);
+      if (!(mag > 0.0)) continue;
+      num += mag * std::arg(acc) / (w * static_cast<double>(h));
+      den += mag;
+    }
+    return den > 0.0 ? 1.0 + std::clamp(num / den, -0.01, 0.01) : 1.0;
+  }
+
   // [RT] Projected energy of the window win_y_[0..nw) onto the onset model starting at offset
   // `tau8` (in 1/kOs samples from the window start); amplitude estimate in `amp`.
   double fit_energy(std::size_t nw, std::int64_t tau8, double& amp) const noexcept {
@@ -585,11 +618,15 @@ class MultitoneDetector final : public Detector {
         const double noise_var = paths_.noise_power(paths_buf_.data(), noise_len_, mt_c_.data(), mt_s_.data(), fine_n_, paths_opt_);
         for (std::size_t n = 0; n < paths_len_; ++n) paths_buf_[n] = ch.raw[(static_cast<std::uint64_t>(w0) + n) & ring_mask_];
         dsp::OnsetPathsFit::Options opt = paths_opt_;
+        const std::size_t fade_n = static_cast<std::size_t>(std::llround(fade_s_ * fs_));
+        if (doppler_ && len_ > 2 * fade_n + 64)
+          opt.time_scale = doppler_scale(ch, static_cast<std::int64_t>(std::floor(centre)) + static_cast<std::int64_t>(fade_n) + 16,
+                                         len_ - 2 * fade_n - 32, mask);
         if (carrier_phase_) {
           double wsum = 0.0;
           for (std::size_t k = 0; k < tones_.size(); ++k)
             if ((mask >> k) & 1u) wsum += tones_[k];
-          opt.carrier_rad = 2.0 * kPi * wsum / std::max(1, std::popcount(mask)) / fs_;
+          opt.carrier_rad = 2.0 * kPi * wsum / std::max(1, std::popcount(mask)) / fs_ * opt.time_scale;
         }
         const dsp::OnsetPathsFit::Result r = paths_.fit(paths_buf_.data(), paths_len_, mt_c_.data(), mt_s_.data(), fine_n_,
                                                         centre - static_cast<double>(w0), noise_var, opt);
@@ -687,7 +724,8 @@ class MultitoneDetector final : public Detector {
   dsp::OnsetPathsFit paths_;
   dsp::OnsetPathsFit::Options paths_opt_;
   std::size_t paths_len_ = 0;
-  bool carrier_phase_ = true;
+  bool carrier_phase_ = true, doppler_ = true;
+  std::size_t doppler_len_ = 353;
   dsp::SosFilter bpf_;
   std::size_t settle_ = 441;
   double tone_energy_ = 1.0;
@@ -743,6 +781,8 @@ const ParamSchema& schema() {
                   "The first path is searched up to this long before the single-path estimate (floor/ceiling image delays)."),
       float_param("path_threshold_db", 16.0, 3.0, 40.0, "dB",
                   "A path of the multipath fit must explain this much over the in-band noise power (per sample)."),
+      bool_param("doppler", true,
+                 "Multipath fit with the beep's time scale (Doppler) measured on its body (tone phase advance)."),
       bool_param("carrier_phase", true,
                  "First path from the carrier phase of its fitted amplitude (the cycle nearest the envelope fit; fit_phase free)."),
       float_param("path_tolerance", 0.02, 0.0, 0.5, "",

@@ -59,11 +59,12 @@ double OnsetPathsFit::explained(const std::int64_t* tau8, std::size_t p, double*
   const auto os = static_cast<std::int64_t>(os_);
   std::int64_t lo = tau8[0];
   for (std::size_t q = 1; q < p; ++q) lo = std::min(lo, tau8[q]);
-  const std::size_t n0 = lo <= 0 ? 0 : static_cast<std::size_t>((lo + os - 1) / os);
+  const std::size_t n0 = lo <= 0 ? 0 : static_cast<std::size_t>(lo / os);
   for (std::size_t n = n0; n < n_; ++n) {
     bool any = false;
     for (std::size_t q = 0; q < p; ++q) {
-      const std::int64_t u = static_cast<std::int64_t>(n) * os - tau8[q];
+      std::int64_t u = static_cast<std::int64_t>(n) * os - tau8[q];
+      if (scaled_) u = std::llround(static_cast<double>(u) * scale_);  // Doppler: the waveform's time axis
       const bool in = u >= 0 && static_cast<std::size_t>(u) < fine_n_;
       any |= in;
       if (known_) {
@@ -107,6 +108,8 @@ double OnsetPathsFit::noise_power(const float* y, std::size_t n, const float* c,
   fine_n_ = fine_n;
   os_ = std::max<std::size_t>(1, o.oversample);
   known_ = o.known_phase;
+  scale_ = 1.0;
+  scaled_ = false;
   for (std::size_t i = 0; i < n_; ++i) y_[i] = y[i];
   const std::size_t len = fine_n_ / os_;  // template length in samples
   if (n_ < len + 32) return 0.0;
@@ -128,6 +131,8 @@ OnsetPathsFit::Result OnsetPathsFit::fit(const float* y, std::size_t n, const fl
   fine_n_ = fine_n;
   os_ = std::max<std::size_t>(1, o.oversample);
   known_ = o.known_phase;
+  scale_ = o.time_scale > 0.0 ? o.time_scale : 1.0;
+  scaled_ = scale_ != 1.0;
   if (n_ < 8 || fine_n_ == 0 || !(tau0 >= 0.0) || tau0 >= static_cast<double>(n_)) return res;
   for (std::size_t i = 0; i < n_; ++i) {
     y_[i] = y[i];

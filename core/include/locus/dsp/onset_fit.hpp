@@ -50,6 +50,8 @@ class OnsetPathsFit {
     double threshold = 40.0;        ///< a path must explain threshold·σ² (σ² = noise power per sample)
     double tolerance = 0.02;        ///< ... plus this fraction of the window's energy (model mismatch)
     bool known_phase = false;       ///< one real amplitude per path (sine part only)
+    double time_scale = 1.0;        ///< the received waveform is c(time_scale·(n − τ)): Doppler
+                                    ///< (1 + radial speed / c, > 1 approaching), e.g. from the beep body
     double carrier_rad = 0.0;       ///< > 0: the first path's delay from its carrier phase (rad/sample:
                                     ///< the waveform's centroid), the cycle nearest its envelope delay
   };
@@ -94,6 +96,8 @@ class OnsetPathsFit {
   const float* s_ = nullptr;
   std::size_t fine_n_ = 0, os_ = 8;
   bool known_ = false;
+  bool scaled_ = false;
+  double scale_ = 1.0;
 };
 
 }  // namespace locus::dsp
