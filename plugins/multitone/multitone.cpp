@@ -212,7 +212,8 @@ class MultitoneDetector final : public Detector {
       }
     }
     fine_n_ = (std::max(fit_len_ + 2 * pre_ + 2 * onset_len_ + 68,
-                        static_cast<std::size_t>(paths_opt_.back) + 2 * pre_ + fit_len_ + 68)) * kOs;
+                        static_cast<std::size_t>(paths_opt_.back) + 2 * pre_ +
+                            static_cast<std::size_t>(std::llround(params.get_float("path_window_s") * fs_)) + 68)) * kOs;
     fine_s_.assign(tones_.size() * fine_n_, 0.0f);
     fine_c_.assign(tones_.size() * fine_n_, 0.0f);
     for (std::size_t k = 0; k < tones_.size(); ++k)
@@ -252,12 +253,14 @@ class MultitoneDetector final : public Detector {
     win_y_.assign(fit_len_ + 2 * pre_ + 2 * onset_len_ + 64, 0.0f);
     // Multipath window: back samples before the single-path estimate (and pre_ more), fit_len_ after.
     paths_opt_.known_phase = coherent_;
-    paths_opt_.ahead = std::max(0.0, static_cast<double>(fit_len_) - 16.0);
-    paths_len_ = static_cast<std::size_t>(paths_opt_.back) + pre_ + fit_len_;
+    const auto path_win = static_cast<std::size_t>(std::llround(params.get_float("path_window_s") * fs_));
+    paths_opt_.ahead = std::max(0.0, static_cast<double>(path_win) - 16.0);
+    paths_len_ = static_cast<std::size_t>(paths_opt_.back) + pre_ + path_win;
     if (paths_opt_.max_paths > 1 && paths_len_ + 1 > fine_n_ / kOs)
       throw std::runtime_error("multitone: path_search_s + fit_window_s is too long for the onset templates");
     paths_buf_.assign(std::max(paths_len_, noise_len_) + 1, 0.0f);
     paths_.reserve(paths_buf_.size());
+    dop_prefix_.assign(len_ + 1, {});
     env_.assign(len_ + tail_ + 2 * smooth_ + 2, 0.0);
     settle_ = static_cast<std::size_t>(std::llround(0.01 * fs_));
     bp_buf_.assign(frame_ + settle_ + len_ + tail_ + 2 * smooth_ + 4, 0.0f);
@@ -451,22 +454,28 @@ class MultitoneDetector final : public Detector {
   // mean phase advance between demodulated windows of two tone-grid periods (the other tones of the
   // grid null out), hop_doppler_ apart (unambiguous up to ±fs/(2·hop) Hz), over ω·hop gives η;
   // weighted by the windows' power. 1 when the body is too short or holds no tone.
-  double doppler_scale(const Channel& ch, std::int64_t start, std::size_t n, std::uint32_t mask) const noexcept {
+  double doppler_scale(const Channel& ch, std::int64_t start, std::size_t n, std::uint32_t mask) noexcept {
     const std::size_t lw = doppler_len_, h = std::max<std::size_t>(1, doppler_len_ / 4);
+    n = std::min(n, dop_prefix_.size() - 1);
     if (start < static_cast<std::int64_t>(ch.start_frame) || static_cast<std::uint64_t>(start) + n > ch.end_frame || n < lw + 2 * h)
       return 1.0;
     double num = 0.0, den = 0.0;
     for (std::size_t k = 0; k < tones_.size(); ++k) {
       if (!((mask >> k) & 1u)) continue;
       const double w = 2.0 * kPi * tones_[k] / fs_;
+      // Prefix sums of the demodulated body: each window's sum is a difference of two.
       const std::complex<double> rot = std::polar(1.0, -w);
+      std::complex<double> ph = 1.0, acc_sum = 0.0;
+      dop_prefix_[0] = 0.0;
+      for (std::size_t i = 0; i < n; ++i) {
+        acc_sum += static_cast<double>(ch.raw[(static_cast<std::uint64_t>(start) + i) & ring_mask_]) * ph;
+        dop_prefix_[i + 1] = acc_sum;
+        ph *= rot;
+        if ((i & 255u) == 255u) ph /= std::abs(ph);  // keep the phasor on the unit circle
+      }
       std::complex<double> acc = 0.0, prev = 0.0;
       for (std::size_t m = 0; m * h + lw <= n; ++m) {
-        std::complex<double> z = 0.0, ph = std::polar(1.0, -w * static_cast<double>(m * h));
-        for (std::size_t i = 0; i < lw; ++i) {
-          z += static_cast<double>(ch.raw[(static_cast<std::uint64_t>(start) + m * h + i) & ring_mask_]) * ph;
-          ph *= rot;
-        }
+        const std::complex<double> z = dop_prefix_[m * h + lw] - dop_prefix_[m * h];
         if (m > 0) acc += z * std::conj(prev);
         prev = z;
       }
@@ -606,7 +615,7 @@ class MultitoneDetector final : public Detector {
       }
       centre = static_cast<double>(w0) + (static_cast<double>(best) + off) / static_cast<double>(kOs);
     }
-    double arrival = centre, timing_conf = 1.0;
+    double arrival = centre, timing_conf = 1.0, envelope = 0.0, period = 0.0;
     // Multipath onset fit (dsp::OnsetPathsFit): the window from path_search_s before the single-path
     // estimate to fit_window_s after it as up to max_paths delayed beeps; the first needed path is
     // the direct one (the single-path fit is pulled towards the floor/ceiling echoes).
@@ -632,6 +641,10 @@ class MultitoneDetector final : public Detector {
                                                         centre - static_cast<double>(w0), noise_var, opt);
         if (r.paths > 0) {
           arrival = static_cast<double>(w0) + r.first;
+          if (opt.carrier_rad > 0.0) {
+            envelope = static_cast<double>(w0) + r.envelope_first;
+            period = 2.0 * kPi / opt.carrier_rad;
+          }
           timing_conf = r.confidence;
           amp = r.first_amplitude;
         }
@@ -649,6 +662,8 @@ class MultitoneDetector final : public Detector {
     d.snr_db = static_cast<float>(snr_db);
     d.confidence = static_cast<float>(std::min(conf, timing_conf));
     d.amplitude = static_cast<float>(amp / std::max(1, std::popcount(mask)));
+    d.envelope_frame = envelope;
+    d.carrier_period = static_cast<float>(period);
     if (!out.emit(Event{d})) ++dropped_;
 
     // Decay features on the smoothed band-passed energy.
@@ -726,6 +741,7 @@ class MultitoneDetector final : public Detector {
   std::size_t paths_len_ = 0;
   bool carrier_phase_ = true, doppler_ = true;
   std::size_t doppler_len_ = 353;
+  std::vector<std::complex<double>> dop_prefix_;
   dsp::SosFilter bpf_;
   std::size_t settle_ = 441;
   double tone_energy_ = 1.0;
@@ -779,6 +795,7 @@ const ParamSchema& schema() {
                 "Paths of the multipath onset fit (direct + echoes; 1 = the single-path fit alone)."),
       float_param("path_search_s", 0.0045, 0.0, 0.02, "s",
                   "The first path is searched up to this long before the single-path estimate (floor/ceiling image delays)."),
+      float_param("path_window_s", 0.005, 0.0005, 0.02, "s", "Multipath fit window after the single-path estimate."),
       float_param("path_threshold_db", 16.0, 3.0, 40.0, "dB",
                   "A path of the multipath fit must explain this much over the in-band noise power (per sample)."),
       bool_param("doppler", true,

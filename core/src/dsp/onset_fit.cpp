@@ -49,7 +49,94 @@ double solve_explained(std::array<double, kMaxDim * kMaxDim>& g, std::array<doub
 }
 }  // namespace
 
-void OnsetPathsFit::reserve(std::size_t max_window) { y_.assign(max_window, 0.0); }
+void OnsetPathsFit::reserve(std::size_t max_window) {
+  y_.assign(max_window, 0.0);
+  fixed_.assign(max_window * kMaxDim, 0.0);
+}
+
+// The best delay for one more path (scan lo8..hi8 by step8, sep8 from the others): the fixed paths'
+// basis, Gram block and projections are computed once; per candidate only its own terms (over the
+// samples after its start).
+std::int64_t OnsetPathsFit::scan_add(const std::int64_t* tau8, std::size_t p, std::int64_t lo8, std::int64_t hi8,
+                                     std::int64_t step8, std::int64_t sep8, double& best_e) noexcept {
+  const std::size_t m = known_ ? 1 : 2, df = m * p, d = df + m;
+  const auto os = static_cast<std::int64_t>(os_);
+  std::array<double, kMaxDim * kMaxDim> gf{};
+  std::array<double, kMaxDim> rf{};
+  for (std::size_t n = 0; n < n_; ++n) {
+    double* v = &fixed_[n * kMaxDim];
+    for (std::size_t q = 0; q < p; ++q) {
+      std::int64_t u = static_cast<std::int64_t>(n) * os - tau8[q];
+      if (scaled_) u = std::llround(static_cast<double>(u) * scale_);
+      const bool in = u >= 0 && static_cast<std::size_t>(u) < fine_n_;
+      if (known_) {
+        v[q] = in ? s_[u] : 0.0;
+      } else {
+        v[2 * q] = in ? c_[u] : 0.0;
+        v[2 * q + 1] = in ? s_[u] : 0.0;
+      }
+    }
+    for (std::size_t i = 0; i < df; ++i) {
+      rf[i] += y_[n] * v[i];
+      for (std::size_t j = 0; j <= i; ++j) gf[i * kMaxDim + j] += v[i] * v[j];
+    }
+  }
+  std::int64_t best = -1;
+  best_e = -1.0;
+  for (std::int64_t t = lo8; t <= hi8; t += step8) {
+    bool near = false;
+    for (std::size_t q = 0; q < p; ++q) near |= std::llabs(t - tau8[q]) < sep8;
+    if (near) continue;
+    std::array<double, kMaxDim * kMaxDim> g = gf;
+    std::array<double, kMaxDim> r = rf;
+    std::array<double, 2> rt{}, gt{};  // new path: projections; Gram cc, ss
+    double gcs = 0.0;
+    std::array<double, 2 * kMaxDim> cross{};  // new path's cos (j) and sin (kMaxDim + j) with fixed basis j
+    const std::size_t n0 = t <= 0 ? 0 : static_cast<std::size_t>((t + os - 1) / os);
+    for (std::size_t n = n0; n < n_; ++n) {
+      std::int64_t u = static_cast<std::int64_t>(n) * os - t;
+      if (scaled_) u = std::llround(static_cast<double>(u) * scale_);
+      if (static_cast<std::size_t>(u) >= fine_n_) break;
+      const double vs = s_[u], yn = y_[n];
+      const double* v = &fixed_[n * kMaxDim];
+      if (known_) {
+        rt[1] += yn * vs;
+        gt[1] += vs * vs;
+        for (std::size_t j = 0; j < df; ++j) cross[kMaxDim + j] += vs * v[j];
+      } else {
+        const double vc = c_[u];
+        rt[0] += yn * vc;
+        rt[1] += yn * vs;
+        gt[0] += vc * vc;
+        gt[1] += vs * vs;
+        gcs += vc * vs;
+        for (std::size_t j = 0; j < df; ++j) {
+          cross[j] += vc * v[j];
+          cross[kMaxDim + j] += vs * v[j];
+        }
+      }
+    }
+    if (known_) {
+      r[df] = rt[1];
+      g[df * kMaxDim + df] = gt[1];
+      for (std::size_t j = 0; j < df; ++j) g[df * kMaxDim + j] = cross[kMaxDim + j];
+    } else {
+      r[df] = rt[0];
+      r[df + 1] = rt[1];
+      g[df * kMaxDim + df] = gt[0];
+      g[(df + 1) * kMaxDim + df] = gcs;
+      g[(df + 1) * kMaxDim + df + 1] = gt[1];
+      for (std::size_t j = 0; j < df; ++j) {
+        g[df * kMaxDim + j] = cross[j];
+        g[(df + 1) * kMaxDim + j] = cross[kMaxDim + j];
+      }
+    }
+    std::array<double, kMaxDim> x{};
+    const double e = solve_explained(g, r, d, x.data());
+    if (e > best_e) best_e = e, best = t;
+  }
+  return best;
+}
 
 double OnsetPathsFit::explained(const std::int64_t* tau8, std::size_t p, double* coef) const noexcept {
   const std::size_t m = known_ ? 1 : 2, d = m * p;
@@ -159,21 +246,15 @@ OnsetPathsFit::Result OnsetPathsFit::fit(const float* y, std::size_t n, const fl
   };
   while (p < max_p) {
     double best_e = -1.0;
-    std::int64_t best_t = -1;
-    for (std::int64_t t = lo8; t <= hi8; t += step8) {
-      bool near = false;
-      for (std::size_t q = 0; q < p; ++q) near |= std::llabs(t - tau[q]) < sep8;
-      if (near) continue;
-      tau[p] = t;
-      const double et = explained(tau.data(), p + 1, nullptr);
-      if (et > best_e) best_e = et, best_t = t;
-    }
+    const std::int64_t best_t = scan_add(tau.data(), p, lo8, hi8, step8, sep8, best_e);
     if (best_t < 0 || best_e - e < thr) break;
     tau[p++] = best_t;
     e = best_e;
-    polish(2);
+    polish(1);
   }
-  std::sort(tau.begin(), tau.begin() + static_cast<std::ptrdiff_t>(p));
+  if (p > 1) polish(1);
+  for (std::size_t i = 1; i < p; ++i)  // ascending delays (insertion sort of <= kMaxPaths)
+    for (std::size_t j = i; j > 0 && tau[j] < tau[j - 1]; --j) std::swap(tau[j], tau[j - 1]);
   // The first needed path: removing it (the others re-fitted, delays kept) loses more than thr.
   std::size_t first = p;
   double need = 0.0;

@@ -90,7 +90,10 @@ class OnsetPathsFit {
   std::int64_t refine(std::int64_t* tau8, std::size_t p, std::size_t which, std::int64_t range8, std::int64_t step8,
                       double& best_e) const noexcept;
 
-  std::vector<double> y_;
+  std::int64_t scan_add(const std::int64_t* tau8, std::size_t p, std::int64_t lo8, std::int64_t hi8, std::int64_t step8,
+                        std::int64_t sep8, double& best_e) noexcept;
+
+  std::vector<double> y_, fixed_;
   std::size_t n_ = 0;
   const float* c_ = nullptr;
   const float* s_ = nullptr;
