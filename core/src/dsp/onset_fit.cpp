@@ -240,7 +240,8 @@ OnsetPathsFit::Result OnsetPathsFit::fit(const float* y, std::size_t n, const fl
   auto polish = [&](std::size_t rounds) {
     for (std::size_t round = 0; round < rounds; ++round)
       for (std::size_t q = 0; q < p; ++q) {
-        refine(tau.data(), p, q, os, std::max<std::int64_t>(1, os / 4), e);
+        refine(tau.data(), p, q, 4 * os, std::max<std::int64_t>(1, os / 2), e);
+        refine(tau.data(), p, q, std::max<std::int64_t>(1, os / 2), std::max<std::int64_t>(1, os / 4), e);
         refine(tau.data(), p, q, std::max<std::int64_t>(1, os / 4), 1, e);
       }
   };
@@ -252,7 +253,7 @@ OnsetPathsFit::Result OnsetPathsFit::fit(const float* y, std::size_t n, const fl
     e = best_e;
     polish(1);
   }
-  if (p > 1) polish(1);
+  polish(1);
   for (std::size_t i = 1; i < p; ++i)  // ascending delays (insertion sort of <= kMaxPaths)
     for (std::size_t j = i; j > 0 && tau[j] < tau[j - 1]; --j) std::swap(tau[j], tau[j - 1]);
   // The first needed path: removing it (the others re-fitted, delays kept) loses more than thr.
