@@ -623,7 +623,8 @@ class MultitoneDetector final : public Detector {
       const std::int64_t w0 = static_cast<std::int64_t>(std::floor(centre)) - static_cast<std::int64_t>(paths_opt_.back) -
                               static_cast<std::int64_t>(pre_);
       if (w0 >= static_cast<std::int64_t>(ch.start_frame) && static_cast<std::uint64_t>(w0) + paths_len_ <= ch.end_frame) {
-        for (std::size_t i = 0; i < noise_len_; ++i) paths_buf_[i] = seg_[i];
+        // The noise reference before the search range (from the ring: the FFT may have used seg_).
+        for (std::size_t i = 0; i < noise_len_; ++i) paths_buf_[i] = ch.raw[(static_cast<std::uint64_t>(seg0) + i) & ring_mask_];
         const double noise_var = paths_.noise_power(paths_buf_.data(), noise_len_, mt_c_.data(), mt_s_.data(), fine_n_, paths_opt_);
         for (std::size_t n = 0; n < paths_len_; ++n) paths_buf_[n] = ch.raw[(static_cast<std::uint64_t>(w0) + n) & ring_mask_];
         dsp::OnsetPathsFit::Options opt = paths_opt_;

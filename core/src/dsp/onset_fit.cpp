@@ -198,14 +198,20 @@ double OnsetPathsFit::noise_power(const float* y, std::size_t n, const float* c,
   scale_ = 1.0;
   scaled_ = false;
   for (std::size_t i = 0; i < n_; ++i) y_[i] = y[i];
-  const std::size_t len = fine_n_ / os_;  // template length in samples
-  if (n_ < len + 32) return 0.0;
+  // Short template stretches (a fifth of the reference) at many starts: the projections of one
+  // long template at nearby starts are nearly the same numbers (the tone grid's envelope repeats),
+  // so few of them would average to a noisy estimate.
+  const std::size_t len = std::min(fine_n_ / os_, std::max<std::size_t>(64, n_ / 5));
+  if (n_ < len + 8) return 0.0;
+  const std::size_t full = fine_n_;
+  fine_n_ = len * os_;
   double sum = 0.0;
   std::size_t count = 0;
-  for (std::size_t start = 0; start + len <= n_; start += 32, ++count) {
+  for (std::size_t start = 0; start + len <= n_; start += 8, ++count) {
     const auto t8 = static_cast<std::int64_t>(start * os_);
     sum += explained(&t8, 1, nullptr);
   }
+  fine_n_ = full;
   return count > 0 ? sum / static_cast<double>(count) / (known_ ? 1.0 : 2.0) : 0.0;
 }
 

@@ -69,7 +69,8 @@ class OnsetPathsFit {
   };
 
   /// [RT] In-band noise power per sample σ² of a noise-only stretch y[0..n): the mean energy one
-  /// path explains there (at starts 32 samples apart), per fitted amplitude. Unlike the raw variance
+  /// path explains there (template stretches of a fifth of n at starts 8 samples apart), per fitted
+  /// amplitude. Unlike the raw variance
   /// it counts only the noise the model can take for signal (coloured noise). 0 when n is too short.
   double noise_power(const float* y, std::size_t n, const float* c, const float* s, std::size_t fine_n,
                      const Options& o) noexcept;
