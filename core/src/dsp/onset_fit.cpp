@@ -67,7 +67,7 @@ std::int64_t OnsetPathsFit::scan_add(const std::int64_t* tau8, std::size_t p, st
     double* v = &fixed_[n * kMaxDim];
     for (std::size_t q = 0; q < p; ++q) {
       std::int64_t u = static_cast<std::int64_t>(n) * os - tau8[q];
-      if (scaled_) u = std::llround(static_cast<double>(u) * scale_);
+      if (scaled_) u = scaled(u);
       const bool in = u >= 0 && static_cast<std::size_t>(u) < fine_n_;
       if (known_) {
         v[q] = in ? s_[u] : 0.0;
@@ -95,7 +95,7 @@ std::int64_t OnsetPathsFit::scan_add(const std::int64_t* tau8, std::size_t p, st
     const std::size_t n0 = t <= 0 ? 0 : static_cast<std::size_t>((t + os - 1) / os);
     for (std::size_t n = n0; n < n_; ++n) {
       std::int64_t u = static_cast<std::int64_t>(n) * os - t;
-      if (scaled_) u = std::llround(static_cast<double>(u) * scale_);
+      if (scaled_) u = scaled(u);
       if (static_cast<std::size_t>(u) >= fine_n_) break;
       const double vs = s_[u], yn = y_[n];
       const double* v = &fixed_[n * kMaxDim];
@@ -151,7 +151,7 @@ double OnsetPathsFit::explained(const std::int64_t* tau8, std::size_t p, double*
     bool any = false;
     for (std::size_t q = 0; q < p; ++q) {
       std::int64_t u = static_cast<std::int64_t>(n) * os - tau8[q];
-      if (scaled_) u = std::llround(static_cast<double>(u) * scale_);  // Doppler: the waveform's time axis
+      if (scaled_) u = scaled(u);  // Doppler: the waveform's time axis
       const bool in = u >= 0 && static_cast<std::size_t>(u) < fine_n_;
       any |= in;
       if (known_) {
@@ -175,16 +175,19 @@ double OnsetPathsFit::explained(const std::int64_t* tau8, std::size_t p, double*
 }
 
 std::int64_t OnsetPathsFit::refine(std::int64_t* tau8, std::size_t p, std::size_t which, std::int64_t range8,
-                                   std::int64_t step8, double& best_e) const noexcept {
-  const std::int64_t t0 = tau8[which];
-  std::int64_t best = t0;
-  for (std::int64_t t = t0 - range8; t <= t0 + range8; t += step8) {
+                                   std::int64_t step8, double& best_e) noexcept {
+  // The other paths fixed: a scan of this one over ±range8 (scan_add's incremental Gram terms).
+  std::array<std::int64_t, kMaxPaths> others{};
+  std::size_t k = 0;
+  for (std::size_t q = 0; q < p; ++q)
+    if (q != which) others[k++] = tau8[q];
+  double e = -1.0;
+  const std::int64_t t = scan_add(others.data(), k, tau8[which] - range8, tau8[which] + range8, step8, 0, e);
+  if (t >= 0 && e > best_e) {
+    best_e = e;
     tau8[which] = t;
-    const double e = explained(tau8, p, nullptr);
-    if (e > best_e) best_e = e, best = t;
   }
-  tau8[which] = best;
-  return best;
+  return tau8[which];
 }
 
 double OnsetPathsFit::noise_power(const float* y, std::size_t n, const float* c, const float* s, std::size_t fine_n,
@@ -207,7 +210,7 @@ double OnsetPathsFit::noise_power(const float* y, std::size_t n, const float* c,
   fine_n_ = len * os_;
   double sum = 0.0;
   std::size_t count = 0;
-  for (std::size_t start = 0; start + len <= n_; start += 8, ++count) {
+  for (std::size_t start = 0; start + len <= n_; start += 16, ++count) {
     const auto t8 = static_cast<std::int64_t>(start * os_);
     sum += explained(&t8, 1, nullptr);
   }

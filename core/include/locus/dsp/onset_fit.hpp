@@ -69,7 +69,7 @@ class OnsetPathsFit {
   };
 
   /// [RT] In-band noise power per sample σ² of a noise-only stretch y[0..n): the mean energy one
-  /// path explains there (template stretches of a fifth of n at starts 8 samples apart), per fitted
+  /// path explains there (template stretches of a fifth of n at starts 16 samples apart), per fitted
   /// amplitude. Unlike the raw variance
   /// it counts only the noise the model can take for signal (coloured noise). 0 when n is too short.
   double noise_power(const float* y, std::size_t n, const float* c, const float* s, std::size_t fine_n,
@@ -89,10 +89,16 @@ class OnsetPathsFit {
   double explained(const std::int64_t* tau8, std::size_t p, double* coef) const noexcept;
   // Best delay for path `which` within ±range8 (1/oversample units, step step8), others fixed.
   std::int64_t refine(std::int64_t* tau8, std::size_t p, std::size_t which, std::int64_t range8, std::int64_t step8,
-                      double& best_e) const noexcept;
+                      double& best_e) noexcept;
 
   std::int64_t scan_add(const std::int64_t* tau8, std::size_t p, std::int64_t lo8, std::int64_t hi8, std::int64_t step8,
                         std::int64_t sep8, double& best_e) noexcept;
+
+  // Template index of a (1/oversample) offset u under the Doppler time scale, rounded (no libm call).
+  std::int64_t scaled(std::int64_t u) const noexcept {
+    const double v = static_cast<double>(u) * scale_;
+    return static_cast<std::int64_t>(v >= 0.0 ? v + 0.5 : v - 0.5);
+  }
 
   std::vector<double> y_, fixed_;
   std::size_t n_ = 0;
