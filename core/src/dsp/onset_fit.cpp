@@ -182,7 +182,7 @@ std::int64_t OnsetPathsFit::refine(std::int64_t* tau8, std::size_t p, std::size_
   for (std::size_t q = 0; q < p; ++q)
     if (q != which) others[k++] = tau8[q];
   double e = -1.0;
-  const std::int64_t t = scan_add(others.data(), k, tau8[which] - range8, tau8[which] + range8, step8, 0, e);
+  const std::int64_t t = scan_add(others.data(), k, tau8[which] - range8, tau8[which] + range8, step8, sep8_, e);
   if (t >= 0 && e > best_e) {
     best_e = e;
     tau8[which] = t;
@@ -242,6 +242,7 @@ OnsetPathsFit::Result OnsetPathsFit::fit(const float* y, std::size_t n, const fl
   std::size_t p = 1;
   double e = explained(tau.data(), 1, nullptr);
   const std::int64_t sep8 = std::llround(o.min_separation * static_cast<double>(os));
+  sep8_ = sep8;
   const std::int64_t step8 = std::max<std::int64_t>(1, std::llround(o.scan_step * static_cast<double>(os)));
   const std::int64_t lo8 = std::max<std::int64_t>(0, tau[0] - std::llround(o.back * static_cast<double>(os)));
   const std::int64_t hi8 = std::min<std::int64_t>(static_cast<std::int64_t>(n_ - 1) * os,

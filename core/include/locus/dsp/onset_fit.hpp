@@ -45,7 +45,7 @@ class OnsetPathsFit {
     std::size_t max_paths = 3;      ///< <= kMaxPaths
     double back = 200.0;            ///< samples before τ_0 a path may start
     double ahead = 120.0;           ///< samples after τ_0 a path may start
-    double min_separation = 6.0;    ///< samples between two paths' starts
+    double min_separation = 12.0;   ///< samples between two paths' starts (about half the envelope mainlobe)
     double scan_step = 2.0;         ///< samples between scanned delays
     double threshold = 40.0;        ///< a path must explain threshold·σ² (σ² = noise power per sample)
     double tolerance = 0.02;        ///< ... plus this fraction of the window's energy (model mismatch)
@@ -107,6 +107,7 @@ class OnsetPathsFit {
   std::size_t fine_n_ = 0, os_ = 8;
   bool known_ = false;
   bool scaled_ = false;
+  std::int64_t sep8_ = 0;  // min_separation in 1/oversample units (refinements keep it too)
   double scale_ = 1.0;
 };
 
