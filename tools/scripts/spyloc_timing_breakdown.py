@@ -52,17 +52,7 @@ def rows_of(scene_dir, det_path):
     beeps = C.beeps_from_extra(scene_dir)
     if beeps is None:
         beeps = C.beeps_from_geometry(scene_dir, scene, device)
-    dets = C.read_events(det_path, 'audio_detection', device)
-    firsts = np.array([b['first'] for b in beeps])
-    best = {}
-    for d in dets:
-        fr = float(d['frame'])
-        j = int(np.argmin(np.abs(firsts - fr)))
-        if abs(firsts[j] - fr) > 0.03 * fs:
-            continue
-        if j in best and abs(float(best[j]['frame']) - firsts[j]) <= abs(fr - firsts[j]):
-            continue
-        best[j] = d
+    best, _ = C.match_detections(beeps, C.read_events(det_path, 'audio_detection', device), 0.03 * fs)
     with open(os.path.join(scene_dir, scene['truth'].get('trajectories', 'truth.csv'))) as f:
         traj = np.array([[float(r[k]) for k in ('t', 'x', 'y', 'z')] for r in csv.DictReader(f) if r['id'] == device])
     ck = scene['truth']['clocks'].get(device, {'offset_s': 0.0, 'skew_ppm': 0.0})

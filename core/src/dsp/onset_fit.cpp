@@ -190,17 +190,22 @@ std::int64_t OnsetPathsFit::refine(std::int64_t* tau8, std::size_t p, std::size_
   return tau8[which];
 }
 
-double OnsetPathsFit::noise_power(const float* y, std::size_t n, const float* c, const float* s, std::size_t fine_n,
-                                  const Options& o) noexcept {
+void OnsetPathsFit::bind(const float* y, std::size_t n, const float* c, const float* s, std::size_t fine_n,
+                         const Options& o, double time_scale) noexcept {
   n_ = std::min(n, y_.size());
   c_ = c;
   s_ = s;
   fine_n_ = fine_n;
   os_ = std::max<std::size_t>(1, o.oversample);
   known_ = o.known_phase;
-  scale_ = 1.0;
-  scaled_ = false;
+  scale_ = time_scale;
+  scaled_ = scale_ != 1.0;
   for (std::size_t i = 0; i < n_; ++i) y_[i] = y[i];
+}
+
+double OnsetPathsFit::noise_power(const float* y, std::size_t n, const float* c, const float* s, std::size_t fine_n,
+                                  const Options& o) noexcept {
+  bind(y, n, c, s, fine_n, o, 1.0);
   // Short template stretches (a fifth of the reference) at many starts: the projections of one
   // long template at nearby starts are nearly the same numbers (the tone grid's envelope repeats),
   // so few of them would average to a noisy estimate.
@@ -221,19 +226,9 @@ double OnsetPathsFit::noise_power(const float* y, std::size_t n, const float* c,
 OnsetPathsFit::Result OnsetPathsFit::fit(const float* y, std::size_t n, const float* c, const float* s,
                                          std::size_t fine_n, double tau0, double noise_var, const Options& o) noexcept {
   Result res;
-  n_ = std::min(n, y_.size());
-  c_ = c;
-  s_ = s;
-  fine_n_ = fine_n;
-  os_ = std::max<std::size_t>(1, o.oversample);
-  known_ = o.known_phase;
-  scale_ = o.time_scale > 0.0 ? o.time_scale : 1.0;
-  scaled_ = scale_ != 1.0;
+  bind(y, n, c, s, fine_n, o, o.time_scale > 0.0 ? o.time_scale : 1.0);
   if (n_ < 8 || fine_n_ == 0 || !(tau0 >= 0.0) || tau0 >= static_cast<double>(n_)) return res;
-  for (std::size_t i = 0; i < n_; ++i) {
-    y_[i] = y[i];
-    res.energy += y_[i] * y_[i];
-  }
+  for (std::size_t i = 0; i < n_; ++i) res.energy += y_[i] * y_[i];
   const auto os = static_cast<std::int64_t>(os_);
   const std::size_t max_p = std::clamp<std::size_t>(o.max_paths, 1, kMaxPaths);
   const double thr = o.threshold * std::max(noise_var, 0.0) + o.tolerance * res.energy;

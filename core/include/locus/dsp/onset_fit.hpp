@@ -91,6 +91,9 @@ class OnsetPathsFit {
   std::int64_t refine(std::int64_t* tau8, std::size_t p, std::size_t which, std::int64_t range8, std::int64_t step8,
                       double& best_e) noexcept;
 
+  // The window (copied), templates and options of one call.
+  void bind(const float* y, std::size_t n, const float* c, const float* s, std::size_t fine_n, const Options& o,
+            double time_scale) noexcept;
   std::int64_t scan_add(const std::int64_t* tau8, std::size_t p, std::int64_t lo8, std::int64_t hi8, std::int64_t step8,
                         std::int64_t sep8, double& best_e) noexcept;
 
