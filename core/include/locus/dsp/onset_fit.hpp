@@ -5,8 +5,9 @@
 // later; with walls reflecting 0.7 in amplitude those are only 3-6 dB weaker). A single-path fit of
 // the onset (one delayed copy of the waveform with a free complex amplitude) over a window that holds
 // both the direct path's fade-in and the echoes is pulled towards the echoes: measured on simulated
-// walks, 27 % of the LoS beeps were timed on the first echo (error = the floor/ceiling image's extra
-// delay, median ratio 1.04) and a further 29 % biased by 1-5 samples. The direct path's own fade-in
+// walks, 27 % of the LoS beeps were timed > 20 samples late or early, the late ones on the first
+// image (error / that image's extra delay: median 1.14), and a further 29 % off by 1-5 samples
+// (docs/spyloc.md "First-path timing", tools/scripts/spyloc_timing_breakdown.py). The direct path's own fade-in
 // carries too little energy before the echo arrives to be fitted alone at these SNRs.
 //
 // So the window is modelled as the sum of up to kMaxPaths delayed copies of the waveform,
@@ -15,11 +16,18 @@
 // `known_phase` only b_p (the waveform's own phase, carrier-resolved). For given delays the amplitudes
 // are linear least squares; the delays are searched greedily: starting from the caller's single-path
 // estimate τ_0, the path that explains most of the remaining energy is added (a scan over
-// [τ_0 − back, τ_0 + ahead] on an integer grid, the other paths' amplitudes re-solved jointly), then
-// every delay is refined in turn on a 1/kOs-sample grid (±1 sample, parabolic vertex at the end). A
-// path is kept only when it explains more than the threshold (noise: `threshold`·σ²; model mismatch:
-// `tolerance` of the window's energy). The FIRST path is the earliest one that is needed: removing it
-// (the others re-fitted) loses more than the threshold.
+// [τ_0 − back, τ_0 + ahead] every scan_step samples, at least min_separation from the others, their
+// amplitudes re-solved jointly; the fixed paths' Gram terms are computed once per scan), then every
+// delay is refined in turn with the others fixed (±4 samples by 1/2, then 1/4, then 1/oversample
+// sample; once after each added path and once at the end, also for a lone path), parabolic vertex at
+// the end. A path is kept only when it explains more than the threshold (noise: `threshold`·σ², σ²
+// the in-band noise power from noise_power(); model mismatch: `tolerance` of the window's energy).
+// The FIRST path is the earliest one that is needed: removing it (the others' amplitudes re-fitted,
+// delays kept) loses more than the threshold. min_separation (12 samples, about half the envelope's
+// mainlobe for 2 kHz of tones) keeps one path from being split in two, which drags the first.
+// Optionally (carrier_rad) the first path's delay is then taken from the carrier phase of its fitted
+// amplitude: the phase zero nearest its envelope delay (phase_refine_near, locus/dsp/peak.hpp).
+// Doppler: `time_scale` stretches the templates' time axis.
 //
 // Lobe-choice confidence: the first path's need (energy lost without it) over the threshold, as
 // 1 − threshold/need in [0, 1]: near 0 when the earliest path barely clears the noise (the choice
