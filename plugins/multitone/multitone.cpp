@@ -14,6 +14,7 @@
 
 #include "locus/dsp/goertzel.hpp"
 #include "locus/dsp/iir.hpp"
+#include "locus/dsp/onset_fit.hpp"
 #include "locus/dsp/signals.hpp"
 
 namespace locus::plugins::multitone {
@@ -165,6 +166,14 @@ class MultitoneDetector final : public Detector {
     rel_ = std::pow(10.0, -params.get_float("relative_db") / 10.0);
     onset_thr_ = std::pow(10.0, params.get_float("onset_threshold_db") / 10.0);
     fit_len_ = static_cast<std::size_t>(std::llround(params.get_float("fit_window_s") * fs_));
+    paths_opt_ = dsp::OnsetPathsFit::Options{};
+    paths_opt_.oversample = kOs;
+    paths_opt_.max_paths = static_cast<std::size_t>(params.get_int("max_paths"));
+    paths_opt_.threshold = std::pow(10.0, params.get_float("path_threshold_db") / 10.0);
+    paths_opt_.tolerance = params.get_float("path_tolerance");
+    paths_opt_.back = std::round(params.get_float("path_search_s") * fs_);
+    carrier_phase_ = params.get_bool("carrier_phase");
+    doppler_ = params.get_bool("doppler");
 
     bank_ = dsp::GoertzelBank(tones_, fs_);
     const double kt = static_cast<double>(tones_.size());
@@ -173,6 +182,7 @@ class MultitoneDetector final : public Detector {
     for (std::size_t i = 0; i < frame_; ++i) win_[i] = static_cast<float>(0.5 - 0.5 * std::cos(2 * kPi * (i + 0.5) / frame_));
     double spacing = tones_.size() > 1 ? tones_[1] - tones_[0] : 250.0;
     for (std::size_t k = 2; k < tones_.size(); ++k) spacing = std::min(spacing, tones_[k] - tones_[k - 1]);
+    doppler_len_ = static_cast<std::size_t>(std::llround(2.0 * fs_ / spacing));  // two periods of the tone grid
     sos_ = dsp::butter_bandpass(4, std::max(1.0, tones_.front() - spacing), std::min(fs_ / 2.0 * 0.999, tones_.back() + spacing), fs_);
 
     len_ = static_cast<std::size_t>(std::llround(duration_s_ * fs_));
@@ -201,7 +211,9 @@ class MultitoneDetector final : public Detector {
         fft_->forward(buf.data(), part == 0 ? spec_c_[k].data() : spec_s_[k].data());
       }
     }
-    fine_n_ = (fit_len_ + 2 * pre_ + 2 * onset_len_ + 68) * kOs;
+    fine_n_ = (std::max(fit_len_ + 2 * pre_ + 2 * onset_len_ + 68,
+                        static_cast<std::size_t>(paths_opt_.back) + 2 * pre_ +
+                            static_cast<std::size_t>(std::llround(params.get_float("path_window_s") * fs_)) + 68)) * kOs;
     fine_s_.assign(tones_.size() * fine_n_, 0.0f);
     fine_c_.assign(tones_.size() * fine_n_, 0.0f);
     for (std::size_t k = 0; k < tones_.size(); ++k)
@@ -239,6 +251,16 @@ class MultitoneDetector final : public Detector {
     mt_s_.assign(fine_n_, 0.0f);
     mt_c_.assign(fine_n_, 0.0f);
     win_y_.assign(fit_len_ + 2 * pre_ + 2 * onset_len_ + 64, 0.0f);
+    // Multipath window: back samples before the single-path estimate (and pre_ more), fit_len_ after.
+    paths_opt_.known_phase = coherent_;
+    const auto path_win = static_cast<std::size_t>(std::llround(params.get_float("path_window_s") * fs_));
+    paths_opt_.ahead = std::max(0.0, static_cast<double>(path_win) - 16.0);
+    paths_len_ = static_cast<std::size_t>(paths_opt_.back) + pre_ + path_win;
+    if (paths_opt_.max_paths > 1 && paths_len_ + 1 > fine_n_ / kOs)
+      throw std::runtime_error("multitone: path_search_s + fit_window_s is too long for the onset templates");
+    paths_buf_.assign(std::max(paths_len_, noise_len_) + 1, 0.0f);
+    paths_.reserve(paths_buf_.size());
+    dop_prefix_.assign(len_ + 1, {});
     env_.assign(len_ + tail_ + 2 * smooth_ + 2, 0.0);
     settle_ = static_cast<std::size_t>(std::llround(0.01 * fs_));
     bp_buf_.assign(frame_ + settle_ + len_ + tail_ + 2 * smooth_ + 4, 0.0f);
@@ -428,6 +450,43 @@ class MultitoneDetector final : public Detector {
     return mask;
   }
 
+  // [RT] Doppler time scale 1 + η of the beep body ch.raw[start, start + n): per identity tone, the
+  // mean phase advance between demodulated windows of two tone-grid periods (the other tones of the
+  // grid null out), hop_doppler_ apart (unambiguous up to ±fs/(2·hop) Hz), over ω·hop gives η;
+  // weighted by the windows' power. 1 when the body is too short or holds no tone.
+  double doppler_scale(const Channel& ch, std::int64_t start, std::size_t n, std::uint32_t mask) noexcept {
+    const std::size_t lw = doppler_len_, h = std::max<std::size_t>(1, doppler_len_ / 4);
+    n = std::min(n, dop_prefix_.size() - 1);
+    if (start < static_cast<std::int64_t>(ch.start_frame) || static_cast<std::uint64_t>(start) + n > ch.end_frame || n < lw + 2 * h)
+      return 1.0;
+    double num = 0.0, den = 0.0;
+    for (std::size_t k = 0; k < tones_.size(); ++k) {
+      if (!((mask >> k) & 1u)) continue;
+      const double w = 2.0 * kPi * tones_[k] / fs_;
+      // Prefix sums of the demodulated body: each window's sum is a difference of two.
+      const std::complex<double> rot = std::polar(1.0, -w);
+      std::complex<double> ph = 1.0, acc_sum = 0.0;
+      dop_prefix_[0] = 0.0;
+      for (std::size_t i = 0; i < n; ++i) {
+        acc_sum += static_cast<double>(ch.raw[(static_cast<std::uint64_t>(start) + i) & ring_mask_]) * ph;
+        dop_prefix_[i + 1] = acc_sum;
+        ph *= rot;
+        if ((i & 255u) == 255u) ph /= std::abs(ph);  // keep the phasor on the unit circle
+      }
+      std::complex<double> acc = 0.0, prev = 0.0;
+      for (std::size_t m = 0; m * h + lw <= n; ++m) {
+        const std::complex<double> z = dop_prefix_[m * h + lw] - dop_prefix_[m * h];
+        if (m > 0) acc += z * std::conj(prev);
+        prev = z;
+      }
+      const double mag = std::abs(acc);
+      if (!(mag > 0.0)) continue;
+      num += mag * std::arg(acc) / (w * static_cast<double>(h));
+      den += mag;
+    }
+    return den > 0.0 ? 1.0 + std::clamp(num / den, -0.01, 0.01) : 1.0;
+  }
+
   // [RT] Projected energy of the window win_y_[0..nw) onto the onset model starting at offset
   // `tau8` (in 1/kOs samples from the window start); amplitude estimate in `amp`.
   double fit_energy(std::size_t nw, std::int64_t tau8, double& amp) const noexcept {
@@ -556,7 +615,42 @@ class MultitoneDetector final : public Detector {
       }
       centre = static_cast<double>(w0) + (static_cast<double>(best) + off) / static_cast<double>(kOs);
     }
-    const double arrival = centre;
+    double arrival = centre, timing_conf = 1.0, envelope = 0.0, period = 0.0;
+    // Multipath onset fit (dsp::OnsetPathsFit): the window from path_search_s before the single-path
+    // estimate to fit_window_s after it as up to max_paths delayed beeps; the first needed path is
+    // the direct one (the single-path fit is pulled towards the floor/ceiling echoes).
+    if (paths_opt_.max_paths > 1) {
+      const std::int64_t w0 = static_cast<std::int64_t>(std::floor(centre)) - static_cast<std::int64_t>(paths_opt_.back) -
+                              static_cast<std::int64_t>(pre_);
+      if (w0 >= static_cast<std::int64_t>(ch.start_frame) && static_cast<std::uint64_t>(w0) + paths_len_ <= ch.end_frame) {
+        // The noise reference before the search range (from the ring: the FFT may have used seg_).
+        for (std::size_t i = 0; i < noise_len_; ++i) paths_buf_[i] = ch.raw[(static_cast<std::uint64_t>(seg0) + i) & ring_mask_];
+        const double noise_var = paths_.noise_power(paths_buf_.data(), noise_len_, mt_c_.data(), mt_s_.data(), fine_n_, paths_opt_);
+        for (std::size_t n = 0; n < paths_len_; ++n) paths_buf_[n] = ch.raw[(static_cast<std::uint64_t>(w0) + n) & ring_mask_];
+        dsp::OnsetPathsFit::Options opt = paths_opt_;
+        const std::size_t fade_n = static_cast<std::size_t>(std::llround(fade_s_ * fs_));
+        if (doppler_ && len_ > 2 * fade_n + 64)
+          opt.time_scale = doppler_scale(ch, static_cast<std::int64_t>(std::floor(centre)) + static_cast<std::int64_t>(fade_n) + 16,
+                                         len_ - 2 * fade_n - 32, mask);
+        if (carrier_phase_) {
+          double wsum = 0.0;
+          for (std::size_t k = 0; k < tones_.size(); ++k)
+            if ((mask >> k) & 1u) wsum += tones_[k];
+          opt.carrier_rad = 2.0 * kPi * wsum / std::max(1, std::popcount(mask)) / fs_ * opt.time_scale;
+        }
+        const dsp::OnsetPathsFit::Result r = paths_.fit(paths_buf_.data(), paths_len_, mt_c_.data(), mt_s_.data(), fine_n_,
+                                                        centre - static_cast<double>(w0), noise_var, opt);
+        if (r.paths > 0) {
+          arrival = static_cast<double>(w0) + r.first;
+          if (opt.carrier_rad > 0.0) {
+            envelope = static_cast<double>(w0) + r.envelope_first;
+            period = 2.0 * kPi / opt.carrier_rad;
+          }
+          timing_conf = r.confidence;
+          amp = r.first_amplitude;
+        }
+      }
+    }
 
     AudioDetection d;
     d.device = device_;
@@ -567,8 +661,10 @@ class MultitoneDetector final : public Detector {
     d.frame = arrival;
     d.sample_rate_hz = fs_;
     d.snr_db = static_cast<float>(snr_db);
-    d.confidence = static_cast<float>(conf);
+    d.confidence = static_cast<float>(std::min(conf, timing_conf));
     d.amplitude = static_cast<float>(amp / std::max(1, std::popcount(mask)));
+    d.envelope_frame = envelope;
+    d.carrier_period = static_cast<float>(period);
     if (!out.emit(Event{d})) ++dropped_;
 
     // Decay features on the smoothed band-passed energy.
@@ -640,7 +736,13 @@ class MultitoneDetector final : public Detector {
   std::vector<dsp::Biquad> sos_;
   std::unique_ptr<RealFft> fft_;
   std::vector<std::vector<cf>> spec_c_, spec_s_;
-  std::vector<float> fine_s_, fine_c_, mt_s_, mt_c_, win_y_, bp_buf_;
+  std::vector<float> fine_s_, fine_c_, mt_s_, mt_c_, win_y_, bp_buf_, paths_buf_;
+  dsp::OnsetPathsFit paths_;
+  dsp::OnsetPathsFit::Options paths_opt_;
+  std::size_t paths_len_ = 0;
+  bool carrier_phase_ = true, doppler_ = true;
+  std::size_t doppler_len_ = 353;
+  std::vector<std::complex<double>> dop_prefix_;
   dsp::SosFilter bpf_;
   std::size_t settle_ = 441;
   double tone_energy_ = 1.0;
@@ -690,6 +792,19 @@ const ParamSchema& schema() {
       enum_param("fit_phase", "free", {"free", "known"},
                  "Onset fit: `free` = complex amplitude (any phase shift of the path), `known` = the format's sine phases (carrier-resolved; a path's phase shift biases it)."),
       float_param("fit_window_s", 0.003, 0.0005, 0.05, "s", "Onset fit window after the first path."),
+      int_param("max_paths", std::int64_t{3}, 1, 3, "",
+                "Paths of the multipath onset fit (direct + echoes; 1 = the single-path fit alone)."),
+      float_param("path_search_s", 0.0045, 0.0, 0.02, "s",
+                  "The first path is searched up to this long before the single-path estimate (floor/ceiling image delays)."),
+      float_param("path_window_s", 0.005, 0.0005, 0.02, "s", "Multipath fit window after the single-path estimate."),
+      float_param("path_threshold_db", 16.0, 3.0, 40.0, "dB",
+                  "A path of the multipath fit must explain this much over the in-band noise power (per sample)."),
+      bool_param("doppler", true,
+                 "Multipath fit with the beep's time scale (Doppler) measured on its body (tone phase advance)."),
+      bool_param("carrier_phase", true,
+                 "First path from the carrier phase of its fitted amplitude (the cycle nearest the envelope fit; fit_phase free)."),
+      float_param("path_tolerance", 0.02, 0.0, 0.5, "",
+                  "... plus this fraction of the window's energy (model mismatch: Doppler, device response)."),
   };
   return schema;
 }

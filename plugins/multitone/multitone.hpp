@@ -36,6 +36,20 @@
 //      passes), parabolic interpolation. A τ too late leaves the signal before it unexplained, a τ
 //      too early misplaces the fade-in; only the first fit_window_s of the beep enter, before most
 //      echoes (3 ms: floor and ceiling images arrive 1.3-2.5 ms after the direct path at 7-15 m);
+//      then (max_paths > 1, default 3) the multipath onset fit (dsp::OnsetPathsFit, design there):
+//      the single-path fit is pulled onto those images when they are strong and early (measured on
+//      simulated walks: 27 % of the LoS beeps timed on the first image, err ≈ its extra delay; a
+//      further 29 % biased by 1-5 samples), so the window from path_search_s before the single-path
+//      estimate to path_window_s after it (5 ms: the fade-in) is fitted as up to max_paths delayed
+//      beeps, each with a free complex amplitude, the template time-scaled by the beep's Doppler
+//      (`doppler`: 1 + η, η from the phase advance of each identity tone between windows of two
+//      grid periods over the body, power-weighted); the earliest path that is needed (removing it
+//      loses more than path_threshold_db over the in-band noise power, measured on the noise
+//      reference, plus path_tolerance of the window's energy) is the first path. With
+//      `carrier_phase` its delay is refined by the carrier phase of its fitted amplitude (centroid of
+//      the identity's tones), the carrier cycle nearest its envelope delay: the phase alone is good to
+//      ~0.1 sample; what is left are whole-cycle slips (2.3 samples) where the envelope is > 1.1
+//      samples off (noise: the onset holds little energy);
 //   5. decay features (SpyLoc §V-B): the energy of the band-passed signal (Butterworth over the
 //      tone band), smoothed by a centred moving average of smoothing_s, from the arrival to
 //      duration_s + tail_s later; reference = its peak during the direct sound; T_x = time from the
@@ -45,7 +59,10 @@
 // Events per beep: AudioDetection (frame = fractional frame of the beep's first sample (first path),
 // snr_db = mean over the identity's tones of their level over floor, confidence = fraction of the
 // identity's tones more than 2×threshold_db above their floors (with candidates: times the score
-// margin over the runner-up, clipped to 0..1), amplitude = onset fit amplitude estimate) followed by
+// margin over the runner-up, clipped to 0..1), and no more than the multipath fit's lobe-choice
+// confidence (how firmly the first path clears its threshold), amplitude = onset fit amplitude
+// estimate; with carrier_phase: envelope_frame = the first path's envelope delay, carrier_period =
+// the carrier period in samples: `frame` is the carrier-phase zero nearest envelope_frame) followed by
 // DecayFeatures (same frame and template_index).
 // Latency: duration_s + tail_s + ~0.1 s after the beep's start.
 #pragma once

@@ -660,7 +660,8 @@ TEST(RtSafety, ChirpOwnEmissionCancellerDoesNotAllocateOrLock) {
 
 namespace locus {
 
-// The multitone detector's beep analysis (leading edge, onset fit, decay features) runs inside
+// The multitone detector's beep analysis (leading edge, onset fit, multipath onset fit with the Doppler
+// estimate, decay features) runs inside
 // process_audio when a beep's audio is complete: feed SpyLoc-like beeps (three identities, one every
 // 0.3 s) so that path runs in the measured section, several beeps queued at once.
 TEST(RtSafety, MultitoneBeepAnalysisDoesNotAllocateOrLock) {
@@ -693,7 +694,9 @@ TEST(RtSafety, MultitoneBeepAnalysisDoesNotAllocateOrLock) {
     s.amplitude = 0.3;
     dsp::SignalEvaluator ev(s, 44100.0);
     const auto n0 = static_cast<std::size_t>(t * 44100.0);
-    for (std::size_t n = n0; n < n0 + 2300 && n < x.size(); ++n) x[n] += static_cast<float>(ev.value((n - t * 44100.0) / 44100.0));
+    // Direct path and a floor-like image 45 samples later: the multipath onset fit adds paths.
+    for (std::size_t n = n0; n < n0 + 2400 && n < x.size(); ++n)
+      x[n] += static_cast<float>(ev.value((n - t * 44100.0) / 44100.0) + 0.7 * ev.value((n - t * 44100.0 - 45.0) / 44100.0));
   }
   std::uint32_t seed = 7;
   for (float& v : x) {

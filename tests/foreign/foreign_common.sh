@@ -1,4 +1,4 @@
-# Sourced by the foreign-scene tests (foreign_scenes.sh, montage_detection.sh): what they share.
+# Sourced by the foreign-scene tests (foreign_scenes.sh, family_detection.sh): what they share.
 #   require_scenes DIR     exit 77 (skip) when DIR is missing, exit 1 under CI=true
 #   scene_family SCENE     prints environment.family of SCENE/scene.yaml ("" when absent), read with a
 #                          YAML parser (block or flow style: "environment: {family: x, ...}")

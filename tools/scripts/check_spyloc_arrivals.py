@@ -129,6 +129,26 @@ def read_events(path, event_type, device):
     return out
 
 
+def match_detections(beeps, dets, window):
+    """Pairs each detection with the beep whose first arrival is nearest (within `window` samples);
+    each beep keeps its nearest detection. Returns ({beep index: detection}, unpaired count)."""
+    firsts = np.array([b['first'] for b in beeps])
+    best = {}
+    false = 0
+    for d in dets:
+        fr = float(d['frame'])
+        j = int(np.argmin(np.abs(firsts - fr)))
+        if abs(firsts[j] - fr) > window:
+            false += 1
+            continue
+        if j in best:
+            false += 1
+            if abs(float(best[j]['frame']) - firsts[j]) <= abs(fr - firsts[j]):
+                continue
+        best[j] = d
+    return best, false
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('scene')
@@ -164,21 +184,7 @@ def main():
     if beeps is None:
         beeps = beeps_from_geometry(a.scene, scene, device)
     dets = read_events(a.detections, 'audio_detection', device)
-    firsts = np.array([b['first'] for b in beeps])
-    win = a.window_s * fs
-    best = {}
-    false = 0
-    for d in dets:
-        fr = float(d['frame'])
-        j = int(np.argmin(np.abs(firsts - fr)))
-        if abs(firsts[j] - fr) > win:
-            false += 1
-            continue
-        if j in best:
-            false += 1
-            if abs(float(best[j]['frame']) - firsts[j]) <= abs(fr - firsts[j]):
-                continue
-        best[j] = d
+    best, false = match_detections(beeps, dets, a.window_s * fs)
     rows = []
     for j, b in enumerate(beeps):
         d = best.get(j)

@@ -115,14 +115,19 @@ TEST(Multitone, IdentityAndArrivalAtStatedSnrs) {
       const double err = o.det[0].frame - truth;
       max_err = std::max(max_err, std::abs(err));
       sum2 += err * err;
-      if (o.det[0].template_index == mask && std::abs(err) <= (k >= 2 ? 2.0 : 30.0)) ++ok;
+      // within 1 sample (a lone tone has no envelope to choose its carrier cycle: 30)
+      if (o.det[0].template_index == mask && std::abs(err) <= (k >= 2 ? 1.0 : 30.0)) ++ok;
       EXPECT_EQ(o.feat[0].frame, o.det[0].frame);
     }
     std::printf("multitone SNR %+.0f dB: %d/%d identity, %d/%d identity+arrival ok, max |err| %.2f, rms %.2f frames\n",
                 snr_db, id_ok, n, ok, n, max_err, std::sqrt(sum2 / n));
     EXPECT_EQ(id_ok, n) << "snr " << snr_db;
-    if (snr_db >= 20.0) EXPECT_EQ(ok, n) << "snr " << snr_db;
-    else if (snr_db >= 10.0) EXPECT_GE(ok, n - 4) << "snr " << snr_db;  // measured 12/16
+    if (snr_db >= 20.0) {
+      EXPECT_EQ(ok, n) << "snr " << snr_db;
+      EXPECT_LT(max_err, 0.25) << "snr " << snr_db;  // carrier phase: measured 0.00
+    } else if (snr_db >= 10.0) {
+      EXPECT_GE(ok, n - 3) << "snr " << snr_db;  // measured 14/16 (single-path fit: 4/16)
+    }
   }
 }
 
@@ -251,9 +256,64 @@ TEST(Multitone, WeakFirstPathBeforeStrongEcho) {
     EXPECT_EQ(o.det[0].template_index, 0b0110010011u);
     const double err = o.det[0].frame - first;
     std::printf("weak first path trial %d: error %.2f samples\n", trial, err);
-    ok += std::abs(err) <= 3.0;
+    ok += std::abs(err) <= 1.0;
   }
-  EXPECT_GE(ok, 7);
+  EXPECT_GE(ok, 7);  // measured 8/8 within 0.01 (the single-path fit: +2.0..+2.9)
+}
+
+// Issue 16's failure mode: indoors the floor or ceiling image arrives 30-60 samples after the direct
+// path, only 2-3 dB weaker, while the direct path's fade-in (5 ms) is still rising; at a modest SNR a
+// single-path onset fit was pulled towards it (on simulated walks up to the echo's delay) or biased
+// by a few samples. Here: direct path + one image (+30..60 samples, 0.8), white noise with the beep
+// 10 dB over it (full band), 16 random identities of >= 3 tones (40 trials). The multipath fit with the carrier
+// phase must time the direct path within 1 sample; the single-path fit alone (max_paths 1,
+// carrier_phase false: the detector before) runs on the same audio for comparison.
+// (Two images 12-20 samples apart, the floor and ceiling pair, are harder: 7-9/16 at +10..+20 dB;
+// docs/spyloc.md "Limits".)
+TEST(Multitone, DirectPathWithinOneSampleBeforeEarlyEchoAtLowSnr) {
+  Fixture f;
+  const Params p = Params::defaults(plugins::multitone::schema());
+  Params single = p;
+  single.set("max_paths", std::int64_t{1});
+  single.set("carrier_phase", false);
+  std::mt19937 rng(2026);
+  std::uniform_int_distribution<int> id(1, 1023);
+  std::uniform_real_distribution<double> delay(30.0, 60.0), frac(0.0, 1.0);
+  const int n = 40;
+  int ok = 0, ok_single = 0, echo = 0, echo_single = 0;
+  double max_err = 0.0;
+  for (int trial = 0; trial < n; ++trial) {
+    std::uint32_t mask = 0;
+    while (std::popcount(mask) < 3) mask = static_cast<std::uint32_t>(id(rng));
+    const int k = std::popcount(mask);
+    const double a = 0.5, first = 0.2 * kFs + 100.0 * frac(rng);
+    const double d1 = delay(rng);
+    std::vector<float> x(static_cast<std::size_t>(0.6 * kFs), 0.0f);
+    add_beep(x, mask, first, a);
+    add_beep(x, mask, first + d1, 0.8 * a);
+    const double sigma = std::sqrt(a * a / (2.0 * k) / std::pow(10.0, 10.0 / 10.0));
+    std::normal_distribution<float> g(0.0f, static_cast<float>(sigma));
+    for (float& v : x) v += g(rng);
+    auto d = make(f, p);
+    const Out o = run(*d, x);
+    auto ds = make(f, single);
+    const Out os = run(*ds, x);
+    ASSERT_EQ(o.det.size(), 1u) << trial;
+    ASSERT_EQ(os.det.size(), 1u) << trial;
+    EXPECT_EQ(o.det[0].template_index, mask) << trial;
+    const double err = o.det[0].frame - first, err_single = os.det[0].frame - first;
+    std::printf("early echo trial %2d: echo +%.1f samples, %d tones: multipath %+.2f (confidence %.2f), single path %+.2f\n",
+                trial, d1, k, err, o.det[0].confidence, err_single);
+    ok += std::abs(err) <= 1.0;
+    ok_single += std::abs(err_single) <= 1.0;
+    echo += err > 15.0;
+    echo_single += err_single > 15.0;
+    max_err = std::max(max_err, std::abs(err));
+  }
+  std::printf("early echo: multipath %d/%d within 1 sample (max |err| %.2f, %d on the echo), single path %d/%d (%d on the echo)\n",
+              ok, n, max_err, echo, ok_single, n, echo_single);
+  EXPECT_GE(ok, 24);    // measured 27/40 (single path: 17/40); the misses are carrier-cycle slips (±2.3 samples)
+  EXPECT_EQ(echo, 0);   // never on the echo (single path: 3/40); 2 of 40 three-tone beeps are timed 35-49 samples early
 }
 
 TEST(Multitone, RejectsBadParameters) {

@@ -2,7 +2,9 @@
 # SpyLoc scenario test (issue 16, docs/spyloc.md): fixed seeds of `locus simulate spyloc` through the
 # shipped config (config/spyloc.yaml):
 #   - detection: >= 98 % of the LoS beeps found with the right identity (the issue's bar; measured
-#     98.2 % and 99.1 % on seeds 101 and 102), scored by tools/scripts/check_spyloc_arrivals.py
+#     98.2 % and 99.1 % on seeds 101 and 102) and >= 60 % of those with the first path within 1 sample
+#     (regression bar; measured 73.1 % and 63.8 %, before the multipath onset fit 44 %; the issue's bar
+#     is 90 %), scored by tools/scripts/check_spyloc_arrivals.py
 #     (needs python3 with numpy and yaml; without them this part is skipped, said so);
 #   - localization: the walker located; median <= 0.3 m, p90 <= 0.8 m (the issue's bar; measured
 #     0.09 / 0.37 m and 0.11 / 0.35 m). It holds on these two seeds, on 15 of 20 and pooled over 20
@@ -39,7 +41,8 @@ run_case() {  # seed
   fi
   if [ -n "$py" ]; then
     status=0
-    "$py" "$src/tools/scripts/check_spyloc_arrivals.py" "$sc" "$sc.jsonl" --min-los-found 0.98 >"$sc.det.txt" 2>&1 || status=$?
+    "$py" "$src/tools/scripts/check_spyloc_arrivals.py" "$sc" "$sc.jsonl" --min-los-found 0.98 --min-los-within1 0.6 \
+      >"$sc.det.txt" 2>&1 || status=$?
     if [ "$status" -ne 0 ]; then
       echo "[seed $seed] detection bar missed:"; cat "$sc.det.txt"; fail=1
     else
