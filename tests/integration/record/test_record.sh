@@ -36,12 +36,21 @@ TMP=$(mktemp -d)
 SERVER="locus_rec_$$"
 PLAYER_NAME="locus_player_$$"
 PIDS=()
+running() {  # running PID: alive and not a zombie (kill -0 succeeds on an unreaped child)
+  [ -r "/proc/$1/status" ] && ! grep -q '^State:[[:space:]]*Z' "/proc/$1/status" 2> /dev/null
+}
+stop_pid() {  # stop_pid PID: SIGTERM, up to 5 s, then SIGKILL; reaped
+  kill "$1" 2> /dev/null
+  for _ in $(seq 50); do running "$1" || break; sleep 0.1; done
+  running "$1" && { echo "info pid $1 ignored SIGTERM for 5 s: SIGKILL"; kill -9 "$1" 2> /dev/null; }
+  wait "$1" 2> /dev/null
+}
+# Clients first, jackd last: a jackd told to stop while its clients are dying can end without
+# unregistering from JACK's server registry (8 slots; each such jackd kept one: see
+# tools/jack/reclaim_registry.py).
 cleanup() {
-  for pid in "${PIDS[@]}"; do kill "$pid" 2> /dev/null; done
-  for pid in "${PIDS[@]}"; do
-    for _ in $(seq 50); do kill -0 "$pid" 2> /dev/null || break; sleep 0.1; done
-    kill -9 "$pid" 2> /dev/null
-  done
+  for pid in "${PIDS[@]}"; do [ "$pid" = "${JACKD_PID:-}" ] || stop_pid "$pid"; done
+  [ -n "${JACKD_PID:-}" ] && stop_pid "$JACKD_PID"
   rm -rf "$TMP"
 }
 trap cleanup EXIT
