@@ -130,8 +130,15 @@ def hil_amil(args, bin_dir, out, run):
     env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1", JACK_DEFAULT_SERVER=server)
     rt = ["-R", "-P", "70"] if args.realtime else ["-r"]
     jackd = run.start("jackd", ["jackd", "-n", server, *rt, "-S", "-d", "dummy", "-r", "44100", "-p", str(args.period)], env=env)
-    wait_for(lambda: subprocess.run(["jack_lsp", "-s", server], capture_output=True, env=env).returncode == 0, 20,
-             "jackd to answer", [("jackd", jackd)])
+    try:
+        wait_for(lambda: subprocess.run(["jack_lsp", "-s", server], capture_output=True, env=env).returncode == 0, 20,
+                 "jackd to answer", [("jackd", jackd)])
+    except Failure as e:
+        with open(os.path.join(out, "logs", "jackd.log"), errors="replace") as f:
+            if "Too many servers already active" in f.read():  # JACK's registry: 8 slots, dead servers keep theirs
+                raise Failure(f"{e}: JACK's server registry is full; `python3 tools/jack/reclaim_registry.py` "
+                              "frees the slots that dead servers still hold (--list shows them)") from None
+        raise
     mqtt_port, broker = start_mosquitto(run, out)
 
     room_out = os.path.join(out, "run")
