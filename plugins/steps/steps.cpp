@@ -43,6 +43,8 @@ class StepsDetector final : public Detector {
       throw std::runtime_error("steps: min_step_s (" + std::to_string(min_step_s_) + ") must be below max_step_s (" +
                                std::to_string(max_step_s_) + ")");
     thr_ = p.get_float("min_peak_valley_mps2");
+    secondary_ratio_ = p.get_float("secondary_ratio");
+    secondary_early_ = p.get_float("secondary_early");
     stride_a_ = p.get_float("stride_a");
     stride_b_ = p.get_float("stride_b");
     leg_m_ = p.get_float("leg_length_m");
@@ -130,6 +132,8 @@ class StepsDetector final : public Detector {
       log_->warn("steps: " + std::to_string(tracker_.rejected()) + " IMU samples with non-finite values ignored");
     if (tracker_.gaps() > 0)
       log_->info("steps: " + std::to_string(tracker_.gaps()) + " gaps in the IMU stream restarted the detector");
+    if (secondary_rejected_ > 0)
+      log_->info("steps: " + std::to_string(secondary_rejected_) + " weak early peaks taken as gait harmonics, not steps");
   }
 
  private:
@@ -143,6 +147,7 @@ class StepsDetector final : public Detector {
     phase_ = Phase::Unknown;
     have_peak_ = false;
     have_last_ = false;
+    n_amp_ = n_int_ = 0;
     w_ = 0;
     active_ = nearest_center(1.8);
   }
@@ -233,9 +238,18 @@ class StepsDetector final : public Detector {
   }
 
   void evaluate_montage(EventSink& out) noexcept {
-    if (max_ - min_ < thr_) return;
+    const double amp = max_ - min_;
+    if (amp < thr_) return;
     const double t_peak = grid_time(k_max_);
     if (have_last_ && t_peak - last_t_ < min_step_s_) return;
+    const bool continuing = have_last_ && t_peak - last_t_ <= max_step_s_;
+    if (!continuing) n_amp_ = n_int_ = 0;  // a new walk: nothing to compare with
+    const bool weak = weak_peak(amp);
+    if (continuing && weak && early_peak(t_peak)) {
+      ++secondary_rejected_;
+      return;
+    }
+    remember(amp, weak, t_peak);
     double f;
     if (have_last_ && t_peak - last_t_ <= max_step_s_) {
       f = 1.0 / (t_peak - last_t_);
@@ -247,6 +261,38 @@ class StepsDetector final : public Detector {
     track_frequency(f);
     const std::size_t len = static_cast<std::size_t>(std::lround(rate_ / f));
     emit(t_peak, f, n_, len, out);
+  }
+
+  /// A weak, early peak is a bump between two steps, not a step: gait harmonics (the second harmonic
+  /// of the step frequency plus a left/right asymmetry) put a bump mid-stride whose peak-valley can
+  /// exceed the absolute threshold; a phone held at some angles sees it every other step (foreign
+  /// montage-103's U1: 46 steps found for 30). Weak: below secondary_ratio x the largest of the last 3
+  /// steps' peak-valley. Early: sooner after the last strong step than secondary_early x the median
+  /// interval between strong steps (so a walk that started on a bump does not lock onto half
+  /// periods). A weak peak at the expected time is a step (a walker who slows down bounces less).
+  bool weak_peak(double amp) const noexcept {
+    if (n_amp_ == 0 || secondary_ratio_ <= 0.0) return false;
+    double ref = 0.0;
+    for (std::size_t i = 0; i < std::min(n_amp_, kHist); ++i) ref = std::max(ref, amp_hist_[i]);
+    return amp < secondary_ratio_ * ref;
+  }
+  bool early_peak(double t) const noexcept {
+    const std::size_t m = std::min(n_int_, kHist);
+    if (m < 2) return true;  // no cadence yet: weakness alone decides
+    double iv[kHist];
+    std::copy(int_hist_, int_hist_ + m, iv);
+    std::sort(iv, iv + m);
+    const double median = (m % 2 == 1) ? iv[m / 2] : 0.5 * (iv[m / 2 - 1] + iv[m / 2]);
+    return t - last_strong_t_ < secondary_early_ * median;
+  }
+  void remember(double amp, bool weak, double t) noexcept {
+    // A step this much stronger than the one before: the cadence so far was measured on bumps (a
+    // walk that started on them while its bounce grew).
+    if (n_amp_ > 0 && secondary_ratio_ > 0.0 && secondary_ratio_ * amp > amp_hist_[(n_amp_ - 1) % kHist]) n_int_ = 0;
+    amp_hist_[n_amp_++ % kHist] = amp;
+    if (weak) return;
+    if (n_amp_ > 1 && t - last_strong_t_ <= max_step_s_) int_hist_[n_int_++ % kHist] = t - last_strong_t_;
+    last_strong_t_ = t;
   }
 
   // ------------------------------------------------------------------ spyloc
@@ -364,6 +410,11 @@ class StepsDetector final : public Detector {
   std::vector<double> centers_;
   std::size_t active_ = 0;
   double mean_tc_s_ = 3.0, min_step_s_ = 0.25, max_step_s_ = 1.0, thr_ = 1.0;
+  double secondary_ratio_ = 0.45, secondary_early_ = 0.75;
+  static constexpr std::size_t kHist = 3;
+  double amp_hist_[kHist] = {}, int_hist_[kHist] = {}, last_strong_t_ = 0.0;
+  std::size_t n_amp_ = 0, n_int_ = 0;
+  std::uint64_t secondary_rejected_ = 0;
   double stride_a_ = 0.25, stride_b_ = 0.25, leg_m_ = 0.9, bounce_k_ = 1.0;
   std::uint64_t warmup_n_ = 0;
   std::size_t m_min_ = 25, m_max_ = 100, ring_size_ = 512, ring_mask_ = 511;
@@ -407,6 +458,11 @@ const ParamSchema& schema() {
     s.push_back(float_param("mean_time_constant_s", 3.0, 0.1, 600.0, "s", "Time constant of the running mean (the crossing level)."));
     s.push_back(float_param("min_step_s", 0.25, 0.1, 2.0, "s", "Shortest step (highest step frequency)."));
     s.push_back(float_param("max_step_s", 1.0, 0.2, 5.0, "s", "Longest step; a longer pause starts a new walk."));
+    s.push_back(float_param("secondary_ratio", 0.45, 0.0, 1.0, "",
+                            "Montage: a peak weaker than this x the largest of the last 3 steps' peak-valley and early "
+                            "(secondary_early) is a gait-harmonic bump, not a step; 0 turns the check off."));
+    s.push_back(float_param("secondary_early", 0.75, 0.1, 1.0, "",
+                            "Montage: 'early' = less than this x the median of the last 3 step intervals after the last step."));
     s.push_back(float_param("min_peak_valley_mps2", 1.0, 0.01, 100.0, "m/s^2",
                             "Montage: smallest peak-to-valley swing of the low-passed vertical acceleration."));
     s.push_back(float_param("warmup_s", 0.5, 0.0, 60.0, "s", "No detection for this long after a (re)start (filters settle)."));

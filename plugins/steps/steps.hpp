@@ -10,7 +10,9 @@
 // `mean_time_constant_s`) is a step, if peak − valley >= min_peak_valley_mps2 and the peak is at
 // least min_step_s after the previous step. Hysteresis of a quarter of that threshold around the
 // mean keeps noise from splitting a cycle. The step time is the peak (heel strike ≈ the vertical
-// acceleration peak); it is emitted when the valley is confirmed (~half a step later).
+// acceleration peak); it is emitted when the valley is confirmed (~half a step later). A peak that
+// is both weak (peak−valley < secondary_ratio × the largest of the last 3 steps') and early (<
+// secondary_early × their median interval) is a gait harmonic's mid-stride bump, not a step.
 //
 // mode `spyloc` (001 Sec. III): windows of m_max = max_step_s·rate samples of the low-passed signal
 // are z-scored and matched against a one-step template (default: one cycle of a cosine starting at

@@ -133,6 +133,51 @@ TEST(Steps, LinearStrideIsAfPlusB) {
   }
 }
 
+// A gait whose mid-stride bump (a strong second harmonic) rises above the threshold every other
+// step (left/right asymmetry), as foreign montage-103's walker U1 does with its phone's attitude
+// (46 steps found for 30 before the secondary-peak check): the bumps are not steps.
+TEST(Steps, MidStrideBumpsOfAnAsymmetricGaitAreNotSteps) {
+  for (const char* mode_ratio : {"on", "off"}) {
+    const bool on = std::string(mode_ratio) == "on";
+    long total_true = 0, total_det = 0;
+    for (unsigned seed = 1; seed <= 3; ++seed) {
+      TestHost host;
+      Params p;
+      if (!on) p.set("secondary_ratio", 0.0);
+      auto det = make_detector("steps", host, p);
+      WalkOptions o;
+      o.seed = seed;
+      o.harmonic = 0.8;  // a mid-stride bump ...
+      o.harmonic_phase = 0.0;
+      o.asymmetry = 0.35;  // ... that crosses the threshold every other step
+      WalkTruth truth;
+      const auto imu = simulate_walk(mixed_walk(), o, truth);
+      CollectingSink sink;
+      feed_imu(*det, imu, sink);
+      det->finish(sink);
+      total_true += static_cast<long>(truth.step_t_s.size());
+      total_det += static_cast<long>(events_of<Step>(sink).size());
+      if (on) {  // say where the extra steps are
+        std::string where;
+        for (const Step& st : events_of<Step>(sink)) {
+          bool near = false;
+          for (double t : truth.step_t_s) near |= std::abs(st.t_s - t) <= 0.2;
+          if (!near) where += " " + std::to_string(st.t_s).substr(0, 6);
+        }
+        if (!where.empty()) std::printf("[ measured ] seed %u: detections away from every heel strike at%s\n", seed, where.c_str());
+      }
+    }
+    const double err = static_cast<double>(total_det - total_true) / static_cast<double>(total_true);
+    std::printf("[ measured ] steps, asymmetric gait, secondary check %s: %ld true, %ld detected (%+.1f %%)\n", mode_ratio,
+                total_true, total_det, 100.0 * err);
+    // 2.5 %, not the 2 % of the regular gait: at each walk start (3 per walk, 0.4 s amplitude ramp)
+    // a bump can pass before there is a cadence to call it early (8 of the 10 extra on seeds 1-3;
+    // the ramp's first heel strike is not in the truth either).
+    if (on) EXPECT_LE(std::abs(err), 0.025);
+    else EXPECT_GT(err, 0.10) << "the walk no longer has the bumps this test is about";
+  }
+}
+
 TEST(Steps, NoStepsWhileStandingOrHandTremor) {
   for (const char* mode : {"montage", "spyloc"}) {
     TestHost host;

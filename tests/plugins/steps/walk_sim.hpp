@@ -36,7 +36,11 @@ struct WalkOptions {
   double jitter_s = 0.002;
   double accel_noise = 0.25, gyro_noise = 0.02, gyro_bias = 0.01;
   double leg_m = 0.9;
-  double harmonic = 0.3;
+  double harmonic = 0.3, harmonic_phase = 0.6;
+  /// Left/right asymmetry: a vertical component at half the step frequency (relative to the
+  /// fundamental), so every other mid-stride bump of the harmonic rises higher (a limp, or a phone
+  /// on one hip).
+  double asymmetry = 0.0;
   Eigen::Quaterniond device_tilt = Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitX()) *
                                                       Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitY()));
   bool with_mag = false;
@@ -84,7 +88,9 @@ inline std::vector<ImuSample> simulate_walk(const std::vector<WalkSegment>& segs
         truth.step_stride_m.push_back(s.stride_m);
       }
       // World-frame accelerations of the walker (x forward, y left in the walker frame).
-      const double av = env * (0.5 * h * w * w * (std::cos(phase) + o.harmonic * std::cos(2 * phase + 0.6)));
+      const double av = env * (0.5 * h * w * w *
+                               (std::cos(phase) + o.harmonic * std::cos(2 * phase + o.harmonic_phase) +
+                                o.asymmetry * std::sin(0.5 * phase)));
       const double af = env * 0.8 * std::sin(phase + 0.4);
       const double al = env * 0.5 * std::sin(0.5 * phase);
       const double sway = env * 0.06 * std::sin(0.5 * phase);
