@@ -531,7 +531,7 @@ class SpyLocLocalizer final : public Localizer {
   std::string instance_, device_, detector_;
   double c_ = 343.2, z_ = 1.2, height_std_ = 0.25, range_std_ = 0.08, max_range_ = 40.0, slack_s_ = 0.002;
   double nlos_bias_m_ = 0.0;
-  double los_thr_ = 0.5, init_window_s_ = 1.5, std_scale_ = 2.36, std_floor_ = 0.05;
+  double los_thr_ = 0.5, init_window_s_ = 1.5, std_scale_ = 1.42, std_floor_ = 0.05;
   int reinit_after_ = 3;
   std::vector<double> region_;
   TrackerConfig tcfg_;
@@ -544,7 +544,7 @@ class SpyLocLocalizer final : public Localizer {
   std::vector<Hypothesis> hyps_;
   int n_hyp_ = 12, rejected_run_ = 0;
   std::uint32_t rejected_beacons_ = 0;  ///< bit per beacon (mod 32) among the current run of rejections
-  double prune_loglik_ = 15.0, hold_s_ = 1.5, pdr_std_scale_ = 2.3, pdr_since_s_ = 0.0;
+  double prune_loglik_ = 15.0, hold_s_ = 1.5, pdr_std_scale_ = 1.38, pdr_since_s_ = 0.0;
   double latest_t_ = -1e300;
   dsp::DeadReckoning dr_;
   Eigen::Vector2d applied_dr_ = Eigen::Vector2d::Zero();
@@ -591,7 +591,7 @@ const ParamSchema& schema() {
       float_param("gate_long_sigma", 2.5, 0.5, 100.0, "", "Innovation gate (sigmas) of a range longer than predicted (NLoS paths are longer)."),
       float_list_param("region_m", std::vector<double>{}, -1e6, 1e6, "m",
                        "[x_min, y_min, x_max, y_max] where the walker can be (resolves the mirror fix of beacons in a line); [] = unknown.", 0, 4),
-      float_param("std_scale", 2.36, 0.01, 100.0, "", "Scale of the filter's std: measured so that 68 % of errors fall within std_m (simulated seeds 101-120; spyloc-104: 71 %)."),
+      float_param("std_scale", 1.42, 0.01, 100.0, "", "Scale of the filter's std (before dead reckoning starts); with pdr_std_scale, docs/spyloc.md \"Uncertainty\"."),
       float_param("std_floor_m", 0.05, 0.0, 10.0, "m", "Smallest reported std_m."),
       bool_param("dead_reckoning", true,
                  "Carry the track with the walker's steps (`step` events) and heading (`attitude` events) once they can be "
@@ -606,7 +606,7 @@ const ParamSchema& schema() {
                   "Dead reckoning: a range waits until the steps up to its time are known, at most this long (a standing walker makes none)."),
       float_param("stride_std", 0.15, 0.0, 1.0, "", "Dead reckoning: per-step stride error (fraction of the stride)."),
       float_param("step_heading_std_rad", 0.12, 0.0, 1.0, "rad", "Dead reckoning: per-step direction error."),
-      float_param("pdr_std_scale", 2.3, 0.01, 100.0, "", "Scale of the dead-reckoning filter's std (std_m = this x its position std)."),
+      float_param("pdr_std_scale", 1.38, 0.01, 100.0, "", "Scale of the dead-reckoning filter's std (std_m = this x its position std): 2 std_m cover 95 % of the simulator's errors (docs/spyloc.md \"Uncertainty\")."),
   };
   return s;
 }

@@ -226,7 +226,7 @@ Simulation make_locble(const FamilyOptions& opts) {
 
   sim.duration_s = opts.duration_s.value_or(walk->end_s() + 0.5);
   sim.acoustics.noise.enabled = false;
-  sim.extra_files["truth_steps.csv"] = truth_steps_csv({{phone.id, walk.get()}});
+  sim.extra_files["truth_steps.csv"] = truth_steps_csv({{phone.id, walk.get()}}, sim.duration_s);
   // The propagation class of every tag's link every 0.1 s (true time): labels for EnvAware training
   // (`locus train locble`) and for measuring it; never read by a localizer.
   {

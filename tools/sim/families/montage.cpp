@@ -129,7 +129,7 @@ Simulation make_montage(const FamilyOptions& opts) {
       sim.emissions.push_back(e);
     }
   }
-  sim.extra_files["truth_steps.csv"] = truth_steps_csv(step_truth);
+  sim.extra_files["truth_steps.csv"] = truth_steps_csv(step_truth, sim.duration_s);
   sim.environment_yaml = "path: " + shape + ", walkers: " + std::to_string(walkers) +
                          ", truth_steps: truth_steps.csv, outdoor: " + (room == "none" ? "true" : "false");
   return sim;

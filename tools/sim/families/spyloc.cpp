@@ -166,7 +166,7 @@ Simulation make_spyloc(const FamilyOptions& opts) {
       los << scene::format_double(e.t_start_true_s()) << ',' << e.source_id << ',' << (blocked ? 0 : 1) << '\n';
     }
   }
-  sim.extra_files["truth_steps.csv"] = truth_steps_csv({{phone.id, walk.get()}});
+  sim.extra_files["truth_steps.csv"] = truth_steps_csv({{phone.id, walk.get()}}, sim.duration_s);
   sim.extra_files["truth_los.csv"] = los.str();
   sim.environment_yaml = "wall: [[9.0, 8.0], [15.0, 8.0]], pace: " + pace +
                          ", truth_steps: truth_steps.csv, truth_los: truth_los.csv";

@@ -32,10 +32,12 @@ std::vector<Vector2d> offset_polyline(const std::vector<Vector2d>& path, double 
   return out;
 }
 
-std::string truth_steps_csv(const std::vector<std::pair<std::string, const PedestrianTrajectory*>>& walkers) {
+std::string truth_steps_csv(const std::vector<std::pair<std::string, const PedestrianTrajectory*>>& walkers,
+                            double until_s) {
   std::vector<std::tuple<double, std::string, double, double>> rows;
   for (const auto& [id, w] : walkers)
-    for (const auto& s : w->true_steps()) rows.emplace_back(s.t_s, id, s.stride_m, s.frequency_hz);
+    for (const auto& s : w->true_steps())
+      if (s.t_s <= until_s) rows.emplace_back(s.t_s, id, s.stride_m, s.frequency_hz);
   std::stable_sort(rows.begin(), rows.end(),
                    [](const auto& a, const auto& b) { return std::get<0>(a) < std::get<0>(b); });
   std::ostringstream out;

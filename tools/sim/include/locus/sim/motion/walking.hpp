@@ -16,8 +16,10 @@ namespace locus::sim::motion {
 std::vector<Eigen::Vector2d> offset_polyline(const std::vector<Eigen::Vector2d>& path, double lateral_m);
 
 /// truth_steps.csv text: header `t_true,id,stride_m,frequency_hz`, one row per heel strike of every
-/// walker, sorted by t_true (true time, s). See docs/simulator.md.
-std::string truth_steps_csv(const std::vector<std::pair<std::string, const PedestrianTrajectory*>>& walkers);
+/// walker up to `until_s` (the recording's duration: a walk cut short by `--duration` has no steps
+/// after it), sorted by t_true (true time, s). See docs/simulator.md.
+std::string truth_steps_csv(const std::vector<std::pair<std::string, const PedestrianTrajectory*>>& walkers,
+                            double until_s);
 
 /// A phone IMU (PhoneImuConfig defaults) whose error sigmas are multiplied by `noise_scale`
 /// (difficulty; PhoneImuConfig::scale_errors).
