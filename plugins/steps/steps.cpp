@@ -67,7 +67,7 @@ class StepsDetector final : public Detector {
     ring_size_ = std::bit_ceil(4 * m_max_ + 16);
     ring_mask_ = ring_size_ - 1;
     lp_ring_.assign(ring_size_, 0.0f);
-    bp_ring_.assign(ring_size_, 0.0f);
+    bank_ring_.assign(bank_.size() * ring_size_, 0.0f);
     scratch_v_.assign(2 * m_max_ + 2, 0.0);
     scratch_p_.assign(2 * m_max_ + 2, 0.0);
 
@@ -159,11 +159,10 @@ class StepsDetector final : public Detector {
     return best;
   }
 
-  /// Montage: switch the band-pass when the walking frequency moved by more than a quarter.
-  void track_frequency(double f) noexcept {
-    const double fa = centers_[active_];
-    if (std::abs(f - fa) > fa / 4.0) active_ = nearest_center(f);
-  }
+  /// The band whose output the stride integrates: the one nearest this step's frequency (Montage
+  /// switches its filter when the frequency moves; here every band runs, so the switch costs no
+  /// settling).
+  void track_frequency(double f) noexcept { active_ = nearest_center(f); }
 
   static bool zscore(float* x, std::size_t n) noexcept {
     double m = 0, s = 0;
@@ -178,14 +177,10 @@ class StepsDetector final : public Detector {
 
   void push_grid(double v, EventSink& out) noexcept {
     const double y = lp_.process_double(v);
-    double bp = 0.0;
-    for (std::size_t k = 0; k < bank_.size(); ++k) {
-      const double b = bank_[k].process_double(v);
-      if (k == active_) bp = b;
-    }
     const std::uint64_t k = n_++;
+    for (std::size_t b = 0; b < bank_.size(); ++b)
+      bank_ring_[b * ring_size_ + (k & ring_mask_)] = static_cast<float>(bank_[b].process_double(v));
     lp_ring_[k & ring_mask_] = static_cast<float>(y);
-    bp_ring_[k & ring_mask_] = static_cast<float>(bp);
     const double beta = std::max(1.0 - std::exp(-dt_ / mean_tc_s_), 1.0 / static_cast<double>(n_));
     mean_ += beta * (y - mean_);
     if (n_ <= warmup_n_) return;
@@ -353,14 +348,15 @@ class StepsDetector final : public Detector {
 
   // ------------------------------------------------------------------ stride and emission
 
-  /// Bounce over the `len` band-passed samples ending before grid index `end`.
+  /// Bounce over the `len` samples ending before grid index `end`, band-passed by the bank's band
+  /// nearest the step frequency (its filter settled: it ran all along).
   double bounce_m(std::uint64_t end, std::size_t len) noexcept {
     len = std::min<std::size_t>({len, scratch_v_.size() - 1, static_cast<std::size_t>(std::min<std::uint64_t>(end, ring_size_))});
     if (len < 4) return kNaN;
     const std::uint64_t start = end - len;
     double v = 0.0, vmean = 0.0;
     for (std::size_t i = 0; i < len; ++i) {
-      v += bp_ring_[(start + i) & ring_mask_] * dt_;
+      v += bank_ring_[active_ * ring_size_ + ((start + i) & ring_mask_)] * dt_;
       scratch_v_[i] = v;
       vmean += v;
     }
@@ -418,7 +414,7 @@ class StepsDetector final : public Detector {
   double stride_a_ = 0.25, stride_b_ = 0.25, leg_m_ = 0.9, bounce_k_ = 1.0;
   std::uint64_t warmup_n_ = 0;
   std::size_t m_min_ = 25, m_max_ = 100, ring_size_ = 512, ring_mask_ = 511;
-  std::vector<float> lp_ring_, bp_ring_;
+  std::vector<float> lp_ring_, bank_ring_;  ///< bank_ring_: every band's output, band-major
   std::vector<double> scratch_v_, scratch_p_;
   double dtw_threshold_ = 0.4;
   std::size_t dtw_window_ = 10, hop_ = 5;

@@ -30,8 +30,9 @@
 // Stride (the length of one step, heel strike to heel strike of the other foot):
 //   `linear` (SpyLoc): s = stride_a·f + stride_b, f the step frequency;
 //   `bounce` (Montage, inverted pendulum): the vertical acceleration band-passed at the walking
-//     frequency ([3f/4, 3f/2], Eq. 5; a bank of band-passes runs in parallel and the active one
-//     changes when f moves by more than f/4, as Montage updates its filter) is integrated twice over
+//     frequency ([3f/4, 3f/2], Eq. 5; a bank of band-passes 6 % apart runs all along and every band's
+//     output is kept, so each step integrates the band nearest its own f, already settled — Montage
+//     switches one filter when f moves, which left the strides after a switch short) is integrated twice over
 //     the last step period (velocity and displacement with their mean / linear trend removed), the
 //     bounce h = max − min displacement gives s = bounce_k · 2·sqrt(2·l·h − h²), l = leg_length_m.
 // frequency_hz: 1 / time since the previous step of the same walk; for the first step of a walk,
