@@ -164,6 +164,20 @@ inline std::vector<std::uint8_t> pack_accel_gyro_scan(const std::int16_t (&raw)[
   return b;
 }
 
+/// One scan of add_imu()'s layout with magn (ImuOptions::magn) and accel, gyro and magn enabled: the nine
+/// le:s16 readings (18 bytes), 6 bytes of padding, the le:s64 timestamp (ns): 32 bytes. `raw`: accel
+/// x/y/z, anglvel x/y/z, magn x/y/z in LSB.
+inline std::vector<std::uint8_t> pack_accel_gyro_magn_scan(const std::int16_t (&raw)[9], std::int64_t timestamp_ns) {
+  std::vector<std::uint8_t> b(32, 0);
+  for (std::size_t i = 0; i < 9; ++i) {
+    b[2 * i] = static_cast<std::uint8_t>(static_cast<std::uint16_t>(raw[i]) & 0xff);
+    b[2 * i + 1] = static_cast<std::uint8_t>(static_cast<std::uint16_t>(raw[i]) >> 8);
+  }
+  const auto ns = static_cast<std::uint64_t>(timestamp_ns);
+  for (std::size_t i = 0; i < 8; ++i) b[24 + i] = static_cast<std::uint8_t>(ns >> (8 * i));
+  return b;
+}
+
 /// Writes to a FIFO (the device side): connects once the reader has opened it (within a deadline).
 class FifoWriter {
  public:
