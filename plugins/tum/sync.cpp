@@ -53,11 +53,16 @@ std::optional<ClockEstimate> estimate_clock(const std::vector<RoundTrip>& trips,
   return e;
 }
 
-std::optional<Election> elect(const std::vector<SyncTable>& tables, double tie_s) {
+std::optional<Election> elect(const std::vector<SyncTable>& tables, double tie_s, const std::vector<std::string>& order) {
   std::map<std::string, const SyncTable*> by_id;
   for (const SyncTable& t : tables) by_id[t.device] = &t;
+  std::map<std::string, std::size_t> rank;  // `order` first, then the others by id
+  for (const std::string& id : order)
+    if (by_id.count(id) && !rank.count(id)) rank[id] = rank.size();
+  for (const auto& [id, t] : by_id)
+    if (!rank.count(id)) rank[id] = rank.size();
   struct Pair {
-    std::string a, b;
+    std::string a, b;  // a ranks better
     double rtt;
   };
   std::vector<Pair> pairs;
@@ -68,16 +73,20 @@ std::optional<Election> elect(const std::vector<SyncTable>& tables, double tie_s
       double rtt = -1.0;
       if (auto f = ia->second->peers.find(ib->first); f != ia->second->peers.end()) rtt = std::max(rtt, f->second.rtt_s);
       if (auto f = ib->second->peers.find(ia->first); f != ib->second->peers.end()) rtt = std::max(rtt, f->second.rtt_s);
-      if (rtt >= 0.0) pairs.push_back({ia->first, ib->first, rtt});  // ids in map order: a < b
+      if (rtt < 0.0) continue;
+      if (rank[ia->first] < rank[ib->first]) pairs.push_back({ia->first, ib->first, rtt});
+      else pairs.push_back({ib->first, ia->first, rtt});
     }
   }
   if (pairs.empty()) return std::nullopt;
   double best = pairs.front().rtt;
   for (const Pair& p : pairs) best = std::min(best, p.rtt);
-  // pairs are in id order (a, then b): the first within the tie is the one whose ids sort first
+  const Pair* won = nullptr;
   for (const Pair& p : pairs)
-    if (p.rtt <= best + tie_s) return Election{p.a, p.b, p.rtt};
-  return std::nullopt;  // unreachable: the best pair is within the tie
+    if (p.rtt <= best + tie_s &&
+        (!won || std::make_pair(rank[p.a], rank[p.b]) < std::make_pair(rank[won->a], rank[won->b])))
+      won = &p;
+  return Election{won->a, won->b, won->rtt};
 }
 
 std::int64_t next_emission_index(double t0_s, double period_s, double after_s) {

@@ -50,16 +50,18 @@ struct SyncTable {
 };
 
 struct Election {
-  std::string device1, device2;  ///< device1 < device2 (ids)
+  std::string device1, device2;  ///< device1: the better ranked of the pair (elect())
   double rtt_s = 0.0;            ///< the pair's RTT (the larger of the two directions measured)
 };
 
 /// The working pair: of every pair of devices that both can work and have measured each other (in at
 /// least one direction), the one with the smallest RTT (the paper's "closest clocks": the offset
 /// between them is the least uncertain); pairs within `tie_s` of the smallest count as equal and the
-/// pair whose ids sort first wins, so that every node given the same tables makes the same choice.
-/// Device 1 is the pair's smaller id. nullopt when no pair qualifies.
-std::optional<Election> elect(const std::vector<SyncTable>& tables, double tie_s);
+/// best ranked pair wins, so that every node given the same tables makes the same choice. Rank: a
+/// device's place in `order` (the config's `elect_order`), then every other device by id; a pair ranks
+/// by its better device, then its other one. Device 1 is the pair's better ranked device. nullopt when
+/// no pair qualifies.
+std::optional<Election> elect(const std::vector<SyncTable>& tables, double tie_s, const std::vector<std::string>& order = {});
 
 /// Emission k of working device 1 is at t0 + k · period on its host clock, device 2's `delay` later;
 /// the first k whose emission (on device 1's clock) is at or after `after_s`.

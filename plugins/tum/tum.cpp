@@ -360,6 +360,15 @@ class TumLocalizer final : public Localizer {
     sync_min_samples_ = static_cast<int>(params.get_int("sync_min_samples"));
     elect_devices_ = static_cast<std::size_t>(params.get_int("elect_devices"));
     elect_tie_s_ = params.get_float("elect_tie_s");
+    elect_order_.clear();
+    for (std::size_t b = 0, e; b <= params.get_string("elect_order").size(); b = e + 1) {
+      const std::string& list = params.get_string("elect_order");
+      e = std::min(list.find(',', b), list.size());
+      std::string id = list.substr(b, e - b);
+      id.erase(0, id.find_first_not_of(' '));
+      id.erase(id.find_last_not_of(' ') + 1);
+      if (!id.empty()) elect_order_.push_back(id);
+    }
     exchange_period_s_ = params.get_float("exchange_period_s");
     tone_delay_s_ = params.get_float("tone_delay_s");
     tone_gain_ = params.get_float("tone_gain");
@@ -448,7 +457,7 @@ class TumLocalizer final : public Localizer {
       }
     std::optional<Election> e;
     if (fixed_roles_) e = Election{device1_, device2_, 0.0};
-    else e = elect(tables, elect_tie_s_);
+    else e = elect(tables, elect_tie_s_, elect_order_);
     if (!e) {
       if (!warned_no_pair_) log_->warn("tum: no pair of devices can work (a speaker, an emitter and two mics each): no election");
       warned_no_pair_ = true;
@@ -628,6 +637,7 @@ class TumLocalizer final : public Localizer {
   double schedule_ahead_s_ = 0.2, start_delay_s_ = 1.0;
   int sync_samples_ = 8, sync_min_samples_ = 4;
   std::size_t elect_devices_ = 2;
+  std::vector<std::string> elect_order_;
   SignalSpec tone1_, tone2_;
   double next_ping_s_ = -kInf, next_role_s_ = -kInf, anchor_s_ = 0.0;
   std::uint64_t ping_seq_ = 0, anchor_frame_ = 0, emissions_ = 0, emissions_missed_ = 0, emit_failures_ = 0, conflicting_roles_ = 0;
@@ -710,7 +720,9 @@ const ParamSchema& schema() {
       int_param("sync_samples", 8, 1, 1000, "", "live: a peer's clock offset and RTT are the medians over its last this many round trips."),
       int_param("sync_min_samples", 4, 1, 1000, "", "live: round trips needed before a peer's clock counts (election, device 2's schedule)."),
       int_param("elect_devices", 2, 2, 1000, "", "live: the election waits for the clock tables of this many devices, each measured to every other."),
-      float_param("elect_tie_s", 0.002, 0.0, 10.0, "s", "live: pairs whose RTT is within this of the smallest tie; the pair whose ids sort first wins."),
+      float_param("elect_tie_s", 0.002, 0.0, 10.0, "s", "live: pairs whose RTT is within this of the smallest tie; the best ranked pair wins (elect_order)."),
+      string_param("elect_order", "",
+                   "live: tie-break ranking, comma-separated device ids (the rest follow by id); device 1 is the better ranked of the pair."),
       float_param("exchange_period_s", 1.0 / 3.0, 0.05, 60.0, "s", "live: working device 1 emits its tone every this long (the paper's 3 exchanges/s)."),
       float_param("tone_delay_s", 0.08, 0.0, 5.0, "s",
                   "live: working device 2 emits this long after device 1 (on device 1's clock, through the link sync); "

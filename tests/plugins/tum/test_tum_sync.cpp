@@ -65,6 +65,11 @@ TEST(TumSync, ElectsTheClosestCapablePairDeterministically) {
   ASSERT_TRUE(tie);
   EXPECT_EQ(tie->device1, "A");
   EXPECT_EQ(tie->device2, "B");
+  // a ranking breaks the tie and picks device 1
+  auto ranked = elect(ts, 0.006, {"C", "B"});
+  ASSERT_TRUE(ranked);
+  EXPECT_EQ(ranked->device1, "C");
+  EXPECT_EQ(ranked->device2, "B");
   // one direction measured is enough; no capable pair, no election
   EXPECT_TRUE(elect({table("A", true, {{"B", 0.001}}), table("B", true, {})}, 0.0));
   EXPECT_FALSE(elect({table("A", true, {{"B", 0.001}}), table("B", false, {})}, 0.0));
