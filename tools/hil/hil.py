@@ -44,13 +44,15 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, os.path.join(ROOT, "tools", "scripts"))
 sys.path.insert(0, HERE)
-from hil_common import Failure, Run, read_jsonl, rss_mb, start_map_node, start_mosquitto, wait_for  # noqa: E402
+from hil_common import (Failure, Run, node_log_figures, read_jsonl, rss_mb, start_jackd, start_map_node,  # noqa: E402
+                        start_mosquitto, wait_for)
 from map_measure import cpu_s  # noqa: E402
 import hil_locble  # noqa: E402
+import hil_tum  # noqa: E402
 
 import yaml  # noqa: E402
 
-LIVE = {"amil", "locble"}  # localizers with a live HIL run (locble: hil_locble.py)
+LIVE = {"amil", "locble", "tum"}  # localizers with a live HIL run (locble: hil_locble.py, tum: hil_tum.py)
 
 
 def layout_for(args, bin_dir, out):
@@ -128,17 +130,7 @@ def hil_amil(args, bin_dir, out, run):
     server = f"locus_hil_{os.getpid()}"
     print(f"== 2/5 jackd -n {server} -d dummy -p {args.period}; mosquitto; locus room", flush=True)
     env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1", JACK_DEFAULT_SERVER=server)
-    rt = ["-R", "-P", "70"] if args.realtime else ["-r"]
-    jackd = run.start("jackd", ["jackd", "-n", server, *rt, "-S", "-d", "dummy", "-r", "44100", "-p", str(args.period)], env=env)
-    try:
-        wait_for(lambda: subprocess.run(["jack_lsp", "-s", server], capture_output=True, env=env).returncode == 0, 20,
-                 "jackd to answer", [("jackd", jackd)])
-    except Failure as e:
-        with open(os.path.join(out, "logs", "jackd.log"), errors="replace") as f:
-            if "Too many servers already active" in f.read():  # JACK's registry: 8 slots, dead servers keep theirs
-                raise Failure(f"{e}: JACK's server registry is full; `python3 tools/jack/reclaim_registry.py` "
-                              "frees the slots that dead servers still hold (--list shows them)") from None
-        raise
+    jackd = start_jackd(run, out, server, args.period, args.realtime, env)
     mqtt_port, broker = start_mosquitto(run, out)
 
     room_out = os.path.join(out, "run")
@@ -229,14 +221,11 @@ def hil_amil(args, bin_dir, out, run):
         rc = run.stop("node-" + ident)
         if rc != 0:
             raise Failure(f"locusd {ident} exited with {rc}; see {out}/logs/node-{ident}.log")
-        with open(os.path.join(out, "logs", f"node-{ident}.log")) as f:
-            text = f.read()
-        mo = re.search(rf"device {re.escape(ident)}: audio frame 0 at CLOCK_MONOTONIC ([0-9.]+) s", text)
-        if mo:
-            origins[ident] = float(mo.group(1))
-        ms = re.search(rf"device {re.escape(ident)}: (\d+) frames processed, (\d+) lost .*playback: (\d+) xruns", text)
-        if ms:
-            lost[ident], xruns[ident] = int(ms.group(2)), int(ms.group(3))
+        origin, frames_lost, node_xruns, _ = node_log_figures(out, ident)
+        if origin is not None:
+            origins[ident] = origin
+        if frames_lost is not None:
+            lost[ident], xruns[ident] = frames_lost, node_xruns
     with open(origins_csv, "w") as f:
         f.write("device,audio_origin_monotonic_s\n")
         for k, v in origins.items():
@@ -331,7 +320,11 @@ def main():
     ap.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the estimates after the layout")
     ap.add_argument("--json", help="write the figures here")
     ap.add_argument("--imu-events", action="store_true", help="the nodes also write their IMU samples (JSON lines)")
-    ap.add_argument("--scene", help="locble: the layout, any LocBLE scene (default: locus simulate locble --seed N)")
+    ap.add_argument("--scene", help="locble, tum: the layout, any scene of the family (default: locus simulate FAMILY --seed N)")
+    ap.add_argument("--track", default="static", choices=["static", "ellipse"],
+                    help="tum: the simulated layout's moving device (locus simulate tum -o track=)")
+    ap.add_argument("--duration", type=float, default=0.0,
+                    help="tum: seconds of exchanges (0 = the layout's span: its truth, or 12 s for a static one)")
     ap.add_argument("--speed", type=float, default=1.0,
                     help="locble: scene seconds per wall second; only 1: the IMU's time base cannot be compressed "
                          "honestly (docs/room.md)")
@@ -353,7 +346,7 @@ def main():
     if not 1 <= args.listeners <= 12:
         print("hil: --listeners: expected 1..12", file=sys.stderr)
         return 2
-    if args.name == "amil":
+    if args.name in ("amil", "tum"):
         for tool in ("jackd", "jack_lsp", "mosquitto"):
             if shutil.which(tool) is None:
                 print(f"hil: {tool} not found (tools/install-deps.sh installs it)", file=sys.stderr)
@@ -382,6 +375,8 @@ def main():
     try:
         if args.name == "amil":
             hil_amil(args, args.bin, out, run)
+        elif args.name == "tum":
+            hil_tum.hil_tum(args, args.bin, out, run)
         else:
             hil_locble.hil_locble(args, args.bin, out, run)
         print(f"hil finished in {time.monotonic() - t0:.1f} s; files in {out}")

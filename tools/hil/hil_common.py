@@ -127,3 +127,32 @@ def start_map_node(run, name, cmd, env, listen, title, events, stop_sse, log_hin
     threading.Thread(target=sse_client, args=(host, int(port), [], stop_sse, lambda m, now: events.append((now, m))),
                      daemon=True).start()
     return p, url
+
+
+def start_jackd(run, out, server, period, realtime, env):
+    """jackd -n SERVER (dummy driver, 44.1 kHz, synchronous, one period of `period` frames; -R -P 70 when
+    `realtime`), answering when this returns; a full JACK server registry is named with the command that
+    frees it. The jackd process."""
+    rt = ["-R", "-P", "70"] if realtime else ["-r"]
+    jackd = run.start("jackd", ["jackd", "-n", server, *rt, "-S", "-d", "dummy", "-r", "44100", "-p", str(period)], env=env)
+    try:
+        wait_for(lambda: subprocess.run(["jack_lsp", "-s", server], capture_output=True, env=env).returncode == 0, 20,
+                 "jackd to answer", [("jackd", jackd)])
+    except Failure as e:
+        with open(os.path.join(out, "logs", "jackd.log"), errors="replace") as f:
+            if "Too many servers already active" in f.read():  # JACK's registry: 8 slots, dead servers keep theirs
+                raise Failure(f"{e}: JACK's server registry is full; `python3 tools/jack/reclaim_registry.py` "
+                              "frees the slots that dead servers still hold (--list shows them)") from None
+        raise
+    return jackd
+
+
+def node_log_figures(out, ident):
+    """From logs/node-<ident>.log of a stopped locusd: (audio origin on CLOCK_MONOTONIC or None, frames
+    lost or None, playback xruns or None, the log's text)."""
+    import re
+    with open(os.path.join(out, "logs", f"node-{ident}.log"), errors="replace") as f:
+        text = f.read()
+    mo = re.search(rf"device {re.escape(ident)}: audio frame 0 at CLOCK_MONOTONIC ([0-9.]+) s", text)
+    ms = re.search(rf"device {re.escape(ident)}: (\d+) frames processed, (\d+) lost .*playback: (\d+) xruns", text)
+    return (float(mo.group(1)) if mo else None, int(ms.group(2)) if ms else None, int(ms.group(3)) if ms else None, text)
