@@ -1,8 +1,9 @@
 #!/usr/bin/python3
 """Hardware-in-the-loop run of a localizer (`./run hil NAME`, docs/room.md): live nodes in a virtual room.
 
-`locble` is hil_locble.py (BlueZ through dbusmock and a fake IIO IMU, played by `locus feed`); the process
-runner and the other pieces both runs use are hil_common.py. This file: the command line and `amil`.
+`locble` is hil_locble.py (BlueZ through dbusmock and a fake IIO IMU, played by `locus feed`), `tum`
+hil_tum.py (TUM's live roles: link sync, election, emissions); the process runner and the other pieces
+the runs share are hil_common.py. This file: the command line and `amil`.
 
 For `amil`: simulates the layout (`locus simulate amil`: the player's triangle gesture and 12 listeners;
 the live protocol: the player pauses 0.8-1.0 s at each corner, long enough for its beep), then starts
@@ -302,7 +303,7 @@ def hil_amil(args, bin_dir, out, run):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("name", help="localizer (amil, locble)")
+    ap.add_argument("name", help="localizer (amil, locble, tum)")
     ap.add_argument("--bin", default=os.path.join(ROOT, "build", "bin"))
     ap.add_argument("--out", help="run directory (default: a fresh temporary one, printed)")
     ap.add_argument("--listeners", type=int, default=12, help="listeners of the layout (1..12)")
