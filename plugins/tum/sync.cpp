@@ -94,6 +94,14 @@ std::int64_t next_emission_index(double t0_s, double period_s, double after_s) {
   return std::max<std::int64_t>(0, static_cast<std::int64_t>(std::ceil((after_s - t0_s) / period_s - 1e-9)));
 }
 
+double tone2_delay_s(double delay_s, double jitter_s, std::int64_t k) {
+  std::uint64_t z = static_cast<std::uint64_t>(k) + 0x9E3779B97F4A7C15ULL;  // splitmix64
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+  z ^= z >> 31;
+  return delay_s + jitter_s * static_cast<double>(z >> 11) * 0x1.0p-53;
+}
+
 std::int64_t frame_for(double t_other_s, double peer_offset_s, double anchor_s, std::uint64_t anchor_frame, double rate_hz) {
   const double t_local = t_other_s - peer_offset_s;  // the other clock = ours + offset
   return static_cast<std::int64_t>(anchor_frame) + static_cast<std::int64_t>(std::llround((t_local - anchor_s) * rate_hz));

@@ -67,6 +67,13 @@ std::optional<Election> elect(const std::vector<SyncTable>& tables, double tie_s
 /// the first k whose emission (on device 1's clock) is at or after `after_s`.
 std::int64_t next_emission_index(double t0_s, double period_s, double after_s);
 
+/// Device 2's delay after device 1 at exchange k: `delay_s` + `jitter_s` · u_k, u_k in [0, 1) a fixed
+/// pseudo-random sequence (splitmix64 of k). Why: the recordings pair the exchanges across clocks by the
+/// interval between the two tones (align_clocks); a constant interval makes every round look alike and
+/// the pairing may settle a whole period off (measured live: seed 3, 334 ms), as the paper's loose sync
+/// and the speakers' random latencies never do.
+double tone2_delay_s(double delay_s, double jitter_s, std::int64_t k);
+
 /// A frame of a playback stream for a time on another clock: `anchor_frame` was the stream's frame at
 /// `anchor_s` on this node's host clock, `peer_offset_s` = the other clock minus ours.
 std::int64_t frame_for(double t_other_s, double peer_offset_s, double anchor_s, std::uint64_t anchor_frame, double rate_hz);

@@ -371,6 +371,7 @@ class TumLocalizer final : public Localizer {
     }
     exchange_period_s_ = params.get_float("exchange_period_s");
     tone_delay_s_ = params.get_float("tone_delay_s");
+    tone_jitter_s_ = params.get_float("tone_jitter_s");
     tone_gain_ = params.get_float("tone_gain");
     schedule_ahead_s_ = params.get_float("schedule_ahead_s");
     start_delay_s_ = params.get_float("start_delay_s");
@@ -518,7 +519,8 @@ class TumLocalizer final : public Localizer {
     const std::uint64_t pf = emitter_->playback_frame();
     const SignalSpec& tone = one ? tone1_ : tone2_;
     for (;;) {
-      const double t = role_->t0_s + static_cast<double>(next_k_) * role_->period_s + (two ? role_->delay_s : 0.0);
+      const double t = role_->t0_s + static_cast<double>(next_k_) * role_->period_s +
+                       (two ? tone2_delay_s(role_->delay_s, tone_jitter_s_, next_k_) : 0.0);
       const std::int64_t f = frame_for(t, offset, anchor_s_, anchor_frame_, fs);
       if (f > static_cast<std::int64_t>(pf) + static_cast<std::int64_t>(schedule_ahead_s_ * fs)) break;
       ++next_k_;
@@ -633,7 +635,8 @@ class TumLocalizer final : public Localizer {
   Emitter* emitter_ = nullptr;
   // live roles
   bool live_ = false, fixed_roles_ = false, can_work_ = false, emitting_ = false, warned_no_pair_ = false;
-  double sync_period_s_ = 0.25, elect_tie_s_ = 0.002, exchange_period_s_ = 1.0 / 3.0, tone_delay_s_ = 0.08, tone_gain_ = 0.8;
+  double sync_period_s_ = 0.25, elect_tie_s_ = 0.002, exchange_period_s_ = 1.0 / 3.0, tone_delay_s_ = 0.07, tone_jitter_s_ = 0.05;
+  double tone_gain_ = 0.8;
   double schedule_ahead_s_ = 0.2, start_delay_s_ = 1.0;
   int sync_samples_ = 8, sync_min_samples_ = 4;
   std::size_t elect_devices_ = 2;
@@ -724,9 +727,12 @@ const ParamSchema& schema() {
       string_param("elect_order", "",
                    "live: tie-break ranking, comma-separated device ids (the rest follow by id); device 1 is the better ranked of the pair."),
       float_param("exchange_period_s", 1.0 / 3.0, 0.05, 60.0, "s", "live: working device 1 emits its tone every this long (the paper's 3 exchanges/s)."),
-      float_param("tone_delay_s", 0.08, 0.0, 5.0, "s",
-                  "live: working device 2 emits this long after device 1 (on device 1's clock, through the link sync); "
-                  "must stay below pair_window_s minus the sync error and the propagation."),
+      float_param("tone_delay_s", 0.07, 0.0, 5.0, "s",
+                  "live: working device 2 emits this long (plus the jitter) after device 1 (on device 1's clock, through "
+                  "the link sync); delay + jitter must stay below pair_window_s minus the sync error and the propagation."),
+      float_param("tone_jitter_s", 0.05, 0.0, 5.0, "s",
+                  "live: device 2's delay varies by up to this from exchange to exchange (a fixed pseudo-random sequence): "
+                  "the recordings' clock pairing tells the rounds apart by the interval between the tones."),
       float_param("tone_gain", 0.8, 0.0, 1.0, "", "live: gain of the emitted tones."),
       float_param("schedule_ahead_s", 0.2, 0.01, 10.0, "s", "live: emissions are handed to the emitter this long before they play."),
       float_param("start_delay_s", 1.0, 0.0, 60.0, "s", "live: the first exchange is this long after the election's announcement."),

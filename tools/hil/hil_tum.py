@@ -86,7 +86,7 @@ def node_config(template, dev, server, mqtt_port, room_out, out_jsonl, n_devices
     cfg = json.loads(json.dumps(template))
     ident = dev["id"]
     cfg["log_level"] = "info"
-    cfg["output"] = {"path": out_jsonl, "events": ["estimate"]}
+    cfg["output"] = {"path": out_jsonl, "events": ["estimate", "audio_detection", "attitude"]}  # what each node saw
     cfg["link"] = {"type": "mqtt", "params": {"host": "127.0.0.1", "port": mqtt_port, "connect_timeout_s": 10}}
     d = cfg["devices"][0]
     d["id"] = ident

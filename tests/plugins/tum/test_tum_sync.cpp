@@ -81,6 +81,14 @@ TEST(TumSync, Schedule) {
   EXPECT_EQ(next_emission_index(10.0, 0.5, 10.0), 0);
   EXPECT_EQ(next_emission_index(10.0, 0.5, 10.2), 1);
   EXPECT_EQ(next_emission_index(10.0, 0.5, 11.0), 2);
+  // device 2's delay: in [delay, delay + jitter), the same for the same k, different across k
+  std::vector<double> d;
+  for (int k = 0; k < 200; ++k) d.push_back(tone2_delay_s(0.07, 0.05, k));
+  EXPECT_EQ(tone2_delay_s(0.07, 0.05, 17), d[17]);
+  EXPECT_GE(*std::min_element(d.begin(), d.end()), 0.07);
+  EXPECT_LT(*std::max_element(d.begin(), d.end()), 0.12);
+  EXPECT_GT(*std::max_element(d.begin(), d.end()) - *std::min_element(d.begin(), d.end()), 0.04);  // spread over the range
+  EXPECT_EQ(tone2_delay_s(0.07, 0.0, 5), 0.07);
   // the other clock is ours + 5 s: its t = 17 is our 12, 2 s after the anchor (frame 1000 at our 10)
   EXPECT_EQ(frame_for(17.0, 5.0, 10.0, 1000, 48000.0), 1000 + 96000);
 }
@@ -197,11 +205,19 @@ TEST(TumLive, ThreeNodesElectAndEmitOnTheirOwnClocks) {
   EXPECT_EQ(nodes["B"].emitter->signals[0].f0_hz, 8000.0);
   for (std::size_t k = 1; k < a.size(); ++k) EXPECT_NEAR(a[k] - a[k - 1], 1.0 / 3.0, 1.0 / 48000.0);
   // B's emission k follows A's by the delay in true time, although B's clock is 0.7 s ahead of A's
+  // A's first emission is exchange first_k of the role's t0 (announced on the link)
+  std::int64_t first_k = -1;
+  for (const auto& m : link.published)
+    if (m.topic == "tum/role" && first_k < 0) {
+      const auto r = decode_sync("tum", m.topic, m.payload).role;
+      first_k = std::llround((a[0] - (r->t0_s - 100.0)) / r->period_s);  // A's clock = true + 100
+    }
   for (double tb : b) {
     double prev = -1e9;
     for (double ta : a)
       if (ta <= tb) prev = ta;
-    EXPECT_NEAR(tb - prev, 0.08, 1e-3) << tb;
+    const auto k = std::llround((prev - a[0]) * 3.0) + first_k;
+    EXPECT_NEAR(tb - prev, tone2_delay_s(0.07, 0.05, k), 1e-3) << tb;
   }
   for (auto& [id, node] : nodes) node.loc->finish(out);
   EXPECT_TRUE(log.contains("link sync A -> B: offset 0.700000 s"));
