@@ -31,7 +31,6 @@ import argparse
 import csv
 import json
 import os
-import re
 import shutil
 import signal
 import statistics
@@ -45,8 +44,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, os.path.join(ROOT, "tools", "scripts"))
 sys.path.insert(0, HERE)
-from hil_common import (Failure, Run, node_log_figures, read_jsonl, rss_mb, start_jackd, start_map_node,  # noqa: E402
-                        start_mosquitto, wait_for)
+from hil_common import (Failure, Run, check_alive, read_jsonl, sample_peaks, start_map_node, start_room,  # noqa: E402
+                        stop_nodes, stop_room, wait_for)
 from map_measure import cpu_s  # noqa: E402
 import hil_locble  # noqa: E402
 import hil_tum  # noqa: E402
@@ -128,24 +127,10 @@ def hil_amil(args, bin_dir, out, run):
           f"player + {args.listeners} listeners -> {out}/layout", flush=True)
     layout, scene, player, listeners = layout_for(args, bin_dir, out)
 
-    server = f"locus_hil_{os.getpid()}"
-    print(f"== 2/5 jackd -n {server} -d dummy -p {args.period}; mosquitto; locus room", flush=True)
-    env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1", JACK_DEFAULT_SERVER=server)
-    jackd = start_jackd(run, out, server, args.period, args.realtime, env)
-    mqtt_port, broker = start_mosquitto(run, out)
-
-    room_out = os.path.join(out, "run")
-    origins_csv = os.path.join(out, "node_origins.csv")
-    room_log = os.path.join(out, "logs", "room.out")
-    room = run.start("room", [locus, "room", layout, room_out, "--server", server, "--skew", "scene", "--seed",
-                              str(args.seed), "--lead-in", "2", "--reflections", str(args.reflections),
-                              "--self-gain", str(args.self_gain), "--node-origins", origins_csv], env=env, stdout=open(room_log, "w"))
-
-    def room_said(pattern):
-        with open(room_log) as f:
-            return re.search(pattern, f.read())
-    # its ports and every IIO tree exist once it says so
-    wait_for(lambda: room_said(r"room: \d+ devices of"), 30, "the room's ports and IIO trees", [("room", room)])
+    print(f"== 2/5 jackd -d dummy -p {args.period}; mosquitto; locus room", flush=True)
+    rm = start_room(run, out, os.path.join(bin_dir, "locus"), layout, args)
+    server, env, jackd, mqtt_port, broker, room = rm.server, rm.env, rm.jackd, rm.mqtt_port, rm.broker, rm.proc
+    room_out, origins_csv, room_log, room_said = rm.out, rm.origins_csv, rm.log, rm.said
 
     print(f"== 3/5 {1 + len(listeners)} locusd nodes (JACK capture/playback, IIO IMU, MQTT link, amil), one gesture",
           flush=True)
@@ -193,15 +178,8 @@ def hil_amil(args, bin_dir, out, run):
         return [e for e in read_jsonl(est_path) if e.get("type") == "estimate"]
     deadline = time.monotonic() + layout_s + 2.0 + args.wait
     while time.monotonic() < deadline:
-        for k, p in pids.items():
-            try:
-                rss, shm = rss_mb(p)
-                peak_rss[k], peak_shm[k] = max(peak_rss[k], rss), max(peak_shm[k], shm)
-            except (FileNotFoundError, ProcessLookupError):
-                pass
-        for name, p in alive:
-            if p.poll() is not None:
-                raise Failure(f"{name} exited ({p.returncode}) during the gesture; see {out}/logs")
+        sample_peaks(pids, peak_rss, peak_shm)
+        check_alive(alive, "the gesture", out)
         if len({e["target"] for e in estimates()}) >= len(listeners) and time.monotonic() > t0 + layout_s:
             break
         time.sleep(0.1)
@@ -217,27 +195,8 @@ def hil_amil(args, bin_dir, out, run):
             time.sleep(0.02)
     print("== 4/5 stop the nodes (their audio origins), then the room (the truth)", flush=True)
     stop_sse.set()
-    origins, xruns, lost = {}, {}, {}
-    for ident in [player] + listeners:
-        rc = run.stop("node-" + ident)
-        if rc != 0:
-            raise Failure(f"locusd {ident} exited with {rc}; see {out}/logs/node-{ident}.log")
-        origin, frames_lost, node_xruns, _ = node_log_figures(out, ident)
-        if origin is not None:
-            origins[ident] = origin
-        if frames_lost is not None:
-            lost[ident], xruns[ident] = frames_lost, node_xruns
-    with open(origins_csv, "w") as f:
-        f.write("device,audio_origin_monotonic_s\n")
-        for k, v in origins.items():
-            f.write(f"{k},{v:.9f}\n")
-    rc = run.stop("room")
-    if rc != 0:
-        raise Failure(f"locus room exited with {rc}; see {out}/logs/room.log")
-    run.stop("mosquitto")
-    run.stop("jackd")
-    with open(room_log) as f:
-        room_summary = f.read().strip().splitlines()[-1]
+    origins, lost, xruns, _ = stop_nodes(run, out, [player] + listeners, origins_csv)
+    room_summary = stop_room(run, out, room_log)
 
     print("== 5/5 locus eval --metric amil", flush=True)
     est = os.path.join(out, "estimates.jsonl")

@@ -35,7 +35,7 @@ import time
 
 import yaml
 
-from hil_common import (Failure, node_log_figures, read_jsonl, rss_mb, start_jackd, start_map_node, start_mosquitto,
+from hil_common import (Failure, check_alive, read_jsonl, sample_peaks, start_map_node, start_room, stop_nodes, stop_room,
                         wait_for)
 from map_measure import cpu_s
 
@@ -136,23 +136,10 @@ def hil_tum(args, bin_dir, out, run):
         t_rows = [float(r["t"]) for r in csv.DictReader(f)]
     duration = args.duration or (max(t_rows) - min(t_rows) if max(t_rows) > min(t_rows) else 12.0)
 
-    server = f"locus_hil_{os.getpid()}"
-    print(f"== 2/6 jackd -n {server} -d dummy -p {args.period}; mosquitto; locus room --magnetometer", flush=True)
-    env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1", JACK_DEFAULT_SERVER=server)
-    jackd = start_jackd(run, out, server, args.period, args.realtime, env)
-    mqtt_port, broker = start_mosquitto(run, out)
-    room_out = os.path.join(out, "run")
-    origins_csv = os.path.join(out, "node_origins.csv")
-    room_log = os.path.join(out, "logs", "room.out")
-    room = run.start("room", [locus, "room", layout, room_out, "--server", server, "--skew", "scene", "--seed",
-                              str(args.seed), "--lead-in", "2", "--reflections", str(args.reflections), "--magnetometer",
-                              "--self-gain", str(args.self_gain), "--node-origins", origins_csv], env=env,
-                     stdout=open(room_log, "w"))
-
-    def room_said(pattern):
-        with open(room_log) as f:
-            return re.search(pattern, f.read())
-    wait_for(lambda: room_said(r"room: \d+ devices of"), 30, "the room's ports and IIO trees", [("room", room)])
+    print(f"== 2/6 jackd -d dummy -p {args.period}; mosquitto; locus room --magnetometer", flush=True)
+    rm = start_room(run, out, locus, layout, args, ["--magnetometer"])
+    server, env, jackd, mqtt_port, broker, room = rm.server, rm.env, rm.jackd, rm.mqtt_port, rm.broker, rm.proc
+    room_out, origins_csv, room_log = rm.out, rm.origins_csv, rm.log
 
     device1 = emitters[0]
     print(f"== 3/6 {len(devices)} locusd nodes from config/tum-node.yaml (sync, election, emissions); {duration:.0f} s "
@@ -175,7 +162,7 @@ def hil_tum(args, bin_dir, out, run):
             p = run.start("node-" + ident, cmd, env=env)
         nodes[ident] = p
     alive = [("room", room), ("jackd", jackd), ("mosquitto", broker)] + [("locusd " + k, v) for k, v in nodes.items()]
-    wait_for(lambda: room_said(r"layout starts at room time"), 90, "every node to connect to the room", alive)
+    wait_for(lambda: rm.said(r"layout starts at room time"), 90, "every node to connect to the room", alive)
 
     def node_said(ident, pattern):
         with open(os.path.join(out, "logs", f"node-{ident}.log"), errors="replace") as f:
@@ -190,14 +177,8 @@ def hil_tum(args, bin_dir, out, run):
     est_path = os.path.join(out, "nodes", device1 + ".jsonl")
     deadline = t0 + duration + 3.0  # start_delay_s (1 s) and the last exchange's detection and solve
     while time.monotonic() < deadline:
-        for k, p in pids.items():
-            try:
-                peak_rss[k] = max(peak_rss[k], rss_mb(p)[0])
-            except (FileNotFoundError, ProcessLookupError):
-                pass
-        for name, p in alive:
-            if p.poll() is not None:
-                raise Failure(f"{name} exited ({p.returncode}) during the exchanges; see {out}/logs")
+        sample_peaks(pids, peak_rss)
+        check_alive(alive, "the exchanges", out)
         time.sleep(0.1)
     wall = time.monotonic() - t0
     cpu = {k: 100.0 * (cpu_s(p) - cpu0[k]) / wall for k, p in pids.items()}
@@ -209,27 +190,8 @@ def hil_tum(args, bin_dir, out, run):
     stop_sse.set()
 
     print("== 4/6 stop the nodes (their audio origins), then the room (the truth)", flush=True)
-    origins, xruns, lost, logs = {}, {}, {}, {}
-    for ident in nodes:
-        rc = run.stop("node-" + ident)
-        if rc != 0:
-            raise Failure(f"locusd {ident} exited with {rc}; see {out}/logs/node-{ident}.log")
-        origin, frames_lost, node_xruns, logs[ident] = node_log_figures(out, ident)
-        if origin is not None:
-            origins[ident] = origin
-        if frames_lost is not None:
-            lost[ident], xruns[ident] = frames_lost, node_xruns
-    with open(origins_csv, "w") as f:
-        f.write("device,audio_origin_monotonic_s\n")
-        for k, v in origins.items():
-            f.write(f"{k},{v:.9f}\n")
-    rc = run.stop("room")
-    if rc != 0:
-        raise Failure(f"locus room exited with {rc}; see {out}/logs/room.out")
-    run.stop("mosquitto")
-    run.stop("jackd")
-    with open(room_log) as f:
-        room_summary = f.read().strip().splitlines()[-1]
+    origins, lost, xruns, logs = stop_nodes(run, out, list(nodes), origins_csv)
+    room_summary = stop_room(run, out, room_log)
 
     # What each node adopted, found and emitted (its log at exit).
     roles = {}

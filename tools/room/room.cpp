@@ -307,10 +307,7 @@ class ImuFeeder {
                                   iio_fake::to_lsb(r.gyro_radps.y(), d.gyro_scale), iio_fake::to_lsb(r.gyro_radps.z(), d.gyro_scale),
                                   iio_fake::to_lsb(mag.x(), d.magn_scale_ut), iio_fake::to_lsb(mag.y(), d.magn_scale_ut),
                                   iio_fake::to_lsb(mag.z(), d.magn_scale_ut)};
-        const std::int16_t raw6[6]{raw[0], raw[1], raw[2], raw[3], raw[4], raw[5]};
-        const std::vector<std::uint8_t> scan =
-            field_ut_ ? iio_fake::pack_accel_gyro_magn_scan(raw, ns)
-                      : iio_fake::pack_accel_gyro_scan(raw6, ns);
+        const std::vector<std::uint8_t> scan = iio_fake::pack_s16_scan(raw, field_ut_ ? 9 : 6, ns);  // the magn channels last
         const ssize_t w = ::write(d.fd, scan.data(), scan.size());
         if (w == static_cast<ssize_t>(scan.size())) {
           d.written.fetch_add(1);
