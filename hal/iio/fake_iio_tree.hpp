@@ -150,18 +150,32 @@ inline std::int16_t to_lsb(double value, double scale) {
   return static_cast<std::int16_t>(std::clamp(std::llround(value / scale), -32768LL, 32767LL));
 }
 
-/// One scan of add_imu()'s default layout with accel and gyro enabled (what the `iio` source enables):
-/// accel x/y/z, anglvel x/y/z as le:s16 (12 bytes), 4 bytes of padding, the le:s64 timestamp (ns):
-/// 24 bytes. `raw` are the six readings in LSB (value = raw * scale).
-inline std::vector<std::uint8_t> pack_accel_gyro_scan(const std::int16_t (&raw)[6], std::int64_t timestamp_ns) {
-  std::vector<std::uint8_t> b(24, 0);
-  for (std::size_t i = 0; i < 6; ++i) {
+/// One scan of `n` le:s16 readings in LSB (`raw`), zero padding to 8 bytes, then the le:s64 timestamp
+/// (ns): the layout add_imu() gives the enabled channels, in scan-index order.
+inline std::vector<std::uint8_t> pack_s16_scan(const std::int16_t* raw, std::size_t n, std::int64_t timestamp_ns) {
+  const std::size_t ts_at = (2 * n + 7) / 8 * 8;
+  std::vector<std::uint8_t> b(ts_at + 8, 0);
+  for (std::size_t i = 0; i < n; ++i) {
     b[2 * i] = static_cast<std::uint8_t>(static_cast<std::uint16_t>(raw[i]) & 0xff);
     b[2 * i + 1] = static_cast<std::uint8_t>(static_cast<std::uint16_t>(raw[i]) >> 8);
   }
   const auto ns = static_cast<std::uint64_t>(timestamp_ns);
-  for (std::size_t i = 0; i < 8; ++i) b[16 + i] = static_cast<std::uint8_t>(ns >> (8 * i));
+  for (std::size_t i = 0; i < 8; ++i) b[ts_at + i] = static_cast<std::uint8_t>(ns >> (8 * i));
   return b;
+}
+
+/// One scan of add_imu()'s default layout with accel and gyro enabled (what the `iio` source enables):
+/// accel x/y/z, anglvel x/y/z as le:s16 (12 bytes), 4 bytes of padding, the le:s64 timestamp (ns):
+/// 24 bytes. `raw` are the six readings in LSB (value = raw * scale).
+inline std::vector<std::uint8_t> pack_accel_gyro_scan(const std::int16_t (&raw)[6], std::int64_t timestamp_ns) {
+  return pack_s16_scan(raw, 6, timestamp_ns);
+}
+
+/// One scan of add_imu()'s layout with magn (ImuOptions::magn) and accel, gyro and magn enabled: the nine
+/// le:s16 readings (18 bytes), 6 bytes of padding, the le:s64 timestamp (ns): 32 bytes. `raw`: accel
+/// x/y/z, anglvel x/y/z, magn x/y/z in LSB.
+inline std::vector<std::uint8_t> pack_accel_gyro_magn_scan(const std::int16_t (&raw)[9], std::int64_t timestamp_ns) {
+  return pack_s16_scan(raw, 9, timestamp_ns);
 }
 
 /// Writes to a FIFO (the device side): connects once the reader has opened it (within a deadline).

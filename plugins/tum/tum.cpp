@@ -11,9 +11,11 @@
 #include <string>
 #include <vector>
 
+#include "locus/emitter.hpp"
 #include "messages.hpp"
 #include "network.hpp"
 #include "solver.hpp"
+#include "sync.hpp"
 #include "tracker.hpp"
 
 namespace locus::plugins::tum {
@@ -60,6 +62,8 @@ class TumLocalizer final : public Localizer {
   void configure(const Params& params, HostContext& ctx) override {
     log_ = &ctx.log;
     link_ = &ctx.link;
+    clock_ = &ctx.clock;
+    emitter_ = ctx.emitter;
     instance_ = std::string(ctx.instance);
     device_ = !ctx.device.empty() ? std::string(ctx.device) : params.get_string("device");
     prefix_ = params.get_string("topic");
@@ -127,7 +131,10 @@ class TumLocalizer final : public Localizer {
       if (template_of_.count(w1)) template1_ = template_of_[w1];
       if (template_of_.count(w2)) template2_ = template_of_[w2];
     }
-    if (w1.empty() || w2.empty() || w1 == w2)
+    configure_live(params);
+    if (live_ && w1.empty() && w2.empty()) {
+      // the working devices are elected on the link (docs/tum.md, "Live roles")
+    } else if (w1.empty() || w2.empty() || w1 == w2)
       throw std::runtime_error("tum: cannot tell the two working devices: the scene declares " +
                                std::string(w1.empty() ? "no" : "one") +
                                " emitting device; set params device1 and device2 (and template1, template2)");
@@ -136,7 +143,10 @@ class TumLocalizer final : public Localizer {
                                " emit the same signal; TUM needs two distinguishable tones (docs/tum.md)");
     device1_ = w1;
     device2_ = w2;
-    reporter_ = device_ == device1_;
+    reporter_ = !device1_.empty() && device_ == device1_;
+    if (live_ && !device1_.empty()) {  // fixed roles: announced by device 1 once the clocks are synchronised
+      fixed_roles_ = true;
+    }
 
     subscription_ = ctx.link.subscribe(topic_filter(prefix_), [this](const LinkMessage& m) { on_message(m); });
   }
@@ -167,11 +177,13 @@ class TumLocalizer final : public Localizer {
       motion_.push_back({s->t_s, g > motion_gyro_radps_});
       while (motion_.size() > 4096) motion_.pop_front();
     }
+    if (live_) live_tick();
     if (reporter_) process(out, false);
   }
 
   /// [main] All inputs ended.
   void finish(Publisher& out) override {
+    if (live_) log_live_summary();
     close_exchanges(kInf);
     if (reporter_) {
       process(out, true);
@@ -233,9 +245,15 @@ class TumLocalizer final : public Localizer {
     }
   }
 
-  /// [main] Link handler: every instance's exchanges; only the reporter keeps them.
+  /// [main] Link handler: every instance's exchanges (only the reporter, or every instance while the
+  /// roles are not elected yet, keeps them) and, live, the sync and role messages.
   void on_message(const LinkMessage& msg) {
-    if (!reporter_) return;
+    if (msg.topic.rfind(prefix_ + "/obs/", 0) != 0) {
+      if (live_) on_sync_message(msg);
+      else if (bad_messages_++ == 0) first_bad_ = msg.topic + ": not a TUM observation (a live node's sync message on a replay?)";
+      return;
+    }
+    if (!reporter_ && !(live_ && device1_.empty())) return;
     Decoded d = decode(prefix_, msg.topic, msg.payload);
     if (!d.obs) {
       if (bad_messages_++ == 0) first_bad_ = msg.topic + ": " + d.error;
@@ -331,6 +349,216 @@ class TumLocalizer final : public Localizer {
     }
   }
 
+  // ------------------------------------------------------------------ live roles (docs/tum.md)
+
+  /// [main] Live when the node has an emitter (locusd with a `playback:` section): the sync, the
+  /// election and the emissions run; on a replay (no emitter) the scene holds what was played.
+  void configure_live(const Params& params) {
+    live_ = emitter_ != nullptr;
+    sync_period_s_ = params.get_float("sync_period_s");
+    sync_samples_ = static_cast<int>(params.get_int("sync_samples"));
+    sync_min_samples_ = static_cast<int>(params.get_int("sync_min_samples"));
+    elect_devices_ = static_cast<std::size_t>(params.get_int("elect_devices"));
+    elect_tie_s_ = params.get_float("elect_tie_s");
+    elect_order_.clear();
+    for (std::size_t b = 0, e; b <= params.get_string("elect_order").size(); b = e + 1) {
+      const std::string& list = params.get_string("elect_order");
+      e = std::min(list.find(',', b), list.size());
+      std::string id = list.substr(b, e - b);
+      id.erase(0, id.find_first_not_of(' '));
+      id.erase(id.find_last_not_of(' ') + 1);
+      if (!id.empty()) elect_order_.push_back(id);
+    }
+    exchange_period_s_ = params.get_float("exchange_period_s");
+    tone_delay_s_ = params.get_float("tone_delay_s");
+    tone_jitter_s_ = params.get_float("tone_jitter_s");
+    tone_gain_ = params.get_float("tone_gain");
+    schedule_ahead_s_ = params.get_float("schedule_ahead_s");
+    start_delay_s_ = params.get_float("start_delay_s");
+    SignalSpec up;
+    up.type = "lfm";
+    up.f0_hz = params.get_float("tone_f0_hz");
+    up.f1_hz = params.get_float("tone_f1_hz");
+    up.duration_s = params.get_float("tone_duration_s");
+    up.fade_s = params.get_float("tone_fade_s");
+    up.amplitude = 1.0;
+    SignalSpec down = up;
+    std::swap(down.f0_hz, down.f1_hz);
+    tone1_ = up;
+    tone2_ = down;
+    if (live_ && up.f0_hz == up.f1_hz) throw std::runtime_error("tum: params tone_f0_hz and tone_f1_hz must differ (an up and a down chirp)");
+    if (live_ && 2.0 * up.fade_s > up.duration_s) throw std::runtime_error("tum: param tone_fade_s must be at most half of tone_duration_s");
+    can_work_ = live_ && speaker_.has_value() && mics_.size() >= 2;
+  }
+
+  /// [main] Live housekeeping, on every event and link message (the IMU's 100 Hz keeps it going).
+  void live_tick() {
+    const double now = clock_->now_s();
+    if (now >= next_ping_s_) {
+      next_ping_s_ = now + sync_period_s_;
+      link_->publish(topic_ping(prefix_, device_), encode(Ping{device_, ping_seq_++, now}));
+      publish_table();
+      if (role_ && role_->election.device1 == device_ && now >= next_role_s_) {  // late joiners hear it too
+        next_role_s_ = now + 2.0;
+        link_->publish(topic_role(prefix_), encode(*role_));
+      }
+    }
+    if (!role_) try_elect(now);
+    if (role_) schedule_emissions(now);
+  }
+
+  void publish_table() {
+    SyncTable t;
+    t.device = device_;
+    t.can_work = can_work_;
+    for (const auto& [id, trips] : trips_)
+      if (auto e = estimate_clock(trips, 1, sync_samples_)) t.peers[id] = *e;
+    link_->publish(topic_table(prefix_, device_), encode(t));
+  }
+
+  void on_sync_message(const LinkMessage& msg) {
+    const double now = clock_->now_s();
+    SyncDecoded d = decode_sync(prefix_, msg.topic, msg.payload);
+    if (!d.error.empty()) {
+      if (bad_messages_++ == 0) first_bad_ = msg.topic + ": " + d.error;
+      return;
+    }
+    if (d.ping && d.ping->from != device_) {
+      link_->publish(topic_pong(prefix_, d.ping->from), encode(Pong{device_, d.ping->from, d.ping->seq, d.ping->t0_s, now, now}));
+    } else if (d.pong && d.pong->to == device_ && d.pong->from != device_) {
+      auto& trips = trips_[d.pong->from];
+      trips.push_back(RoundTrip{d.pong->t0_s, d.pong->t1_s, d.pong->t2_s, now});
+      if (trips.size() > static_cast<std::size_t>(4 * sync_samples_)) trips.erase(trips.begin());
+    } else if (d.table) {
+      tables_[d.table->device] = *d.table;
+    } else if (d.role) {
+      adopt(*d.role, now);
+    }
+    live_tick();
+  }
+
+  /// The clock estimate of `peer` (its clock minus ours), once enough round trips are in.
+  std::optional<ClockEstimate> clock_of(const std::string& peer) const {
+    auto it = trips_.find(peer);
+    if (it == trips_.end()) return std::nullopt;
+    return estimate_clock(it->second, sync_min_samples_, sync_samples_);
+  }
+
+  /// Elects once `elect_devices` devices have reported every other of them with enough round trips; the
+  /// elected device 1 announces the roles (t0 on its clock); every node adopts the first announcement.
+  void try_elect(double now) {
+    std::vector<SyncTable> tables;
+    for (const auto& [id, t] : tables_) tables.push_back(t);
+    if (tables.size() < std::max<std::size_t>(2, elect_devices_)) return;
+    for (const SyncTable& t : tables)
+      for (const SyncTable& o : tables) {
+        if (o.device == t.device) continue;
+        auto f = t.peers.find(o.device);
+        if (f == t.peers.end() || f->second.samples < sync_min_samples_) return;
+      }
+    std::optional<Election> e;
+    if (fixed_roles_) e = Election{device1_, device2_, 0.0};
+    else e = elect(tables, elect_tie_s_, elect_order_);
+    if (!e) {
+      if (!warned_no_pair_) log_->warn("tum: no pair of devices can work (a speaker, an emitter and two mics each): no election");
+      warned_no_pair_ = true;
+      return;
+    }
+    if (e->device1 != device_) return;  // device 1 announces
+    if (!fixed_roles_) {
+      auto t1 = std::find_if(tables.begin(), tables.end(), [&](const SyncTable& t) { return t.device == e->device1; });
+      auto f = t1->peers.find(e->device2);
+      if (f != t1->peers.end()) e->rtt_s = f->second.rtt_s;
+    }
+    Role r{*e, now + start_delay_s_, exchange_period_s_, tone_delay_s_};
+    link_->publish(topic_role(prefix_), encode(r));
+    adopt(r, now);
+  }
+
+  void adopt(const Role& r, double now) {
+    if (role_) {
+      if (r.election.device1 != role_->election.device1 || r.election.device2 != role_->election.device2 || r.t0_s != role_->t0_s)
+        if (conflicting_roles_++ == 0)
+          log_->warn("tum: another role announcement (" + r.election.device1 + ", " + r.election.device2 + ") after (" +
+                     role_->election.device1 + ", " + role_->election.device2 + "): the first one stays");
+      return;
+    }
+    role_ = r;
+    device1_ = r.election.device1;
+    device2_ = r.election.device2;
+    reporter_ = device_ == device1_;
+    if (!reporter_) {
+      remote_.clear();
+      order_.clear();
+    }
+    log_->info("tum: working devices " + device1_ + " and " + device2_ + " (RTT " + std::to_string(r.election.rtt_s * 1e3) +
+               " ms); exchanges every " + std::to_string(r.period_s) + " s from " + std::to_string(r.t0_s) + " s on " + device1_ +
+               "'s clock" + (reporter_ ? "; this node solves" : ""));
+    if (device_ == device1_ || device_ == device2_) {
+      anchor_s_ = now;
+      anchor_frame_ = emitter_->playback_frame();
+    }
+  }
+
+  /// Working devices: schedule the next emissions within `schedule_ahead_s` through the emitter.
+  void schedule_emissions(double now) {
+    const bool one = device_ == device1_, two = device_ == device2_;
+    if (!one && !two) return;
+    double offset = 0.0;  // device 1's clock minus ours
+    if (two) {
+      const auto c = clock_of(device1_);
+      if (!c) return;  // not yet: device 2 needs device 1's clock
+      offset = c->offset_s;
+      if (!emitting_) device2_offset_ = *c;
+    }
+    if (!emitting_) {
+      emitting_ = true;
+      next_k_ = next_emission_index(role_->t0_s, role_->period_s, now + offset + 0.05);
+    }
+    const double fs = emitter_->sample_rate_hz();
+    const std::uint64_t pf = emitter_->playback_frame();
+    const SignalSpec& tone = one ? tone1_ : tone2_;
+    for (;;) {
+      const double t = role_->t0_s + static_cast<double>(next_k_) * role_->period_s +
+                       (two ? tone2_delay_s(role_->delay_s, tone_jitter_s_, next_k_) : 0.0);
+      const std::int64_t f = frame_for(t, offset, anchor_s_, anchor_frame_, fs);
+      if (f > static_cast<std::int64_t>(pf) + static_cast<std::int64_t>(schedule_ahead_s_ * fs)) break;
+      ++next_k_;
+      if (f <= static_cast<std::int64_t>(pf)) {
+        ++emissions_missed_;  // its frame has been played already (the node was busy)
+        continue;
+      }
+      std::string err;
+      if (emitter_->schedule(tone, static_cast<std::uint64_t>(f), tone_gain_, &err)) {
+        ++emissions_;
+      } else if (emit_failures_++ == 0) {
+        emit_error_ = err;
+      }
+    }
+  }
+
+  void log_live_summary() {
+    for (const auto& [id, trips] : trips_)
+      if (auto e = estimate_clock(trips, 1, sync_samples_))
+        log_->info("tum: link sync " + device_ + " -> " + id + ": offset " + std::to_string(e->offset_s) + " s, RTT " +
+                   std::to_string(e->rtt_s * 1e3) + " ms, spread " + std::to_string(e->spread_s * 1e3) + " ms over " +
+                   std::to_string(e->samples) + " round trips");
+    if (!role_) {
+      log_->warn("tum: " + device_ + ": no working devices were elected (" + std::to_string(tables_.size()) + " of " +
+                 std::to_string(std::max<std::size_t>(2, elect_devices_)) + " devices reported their clocks)");
+      return;
+    }
+    if (device_ == device1_ || device_ == device2_)
+      log_->info("tum: " + device_ + " emitted tone " + (device_ == device1_ ? "1" : "2") + ": " + std::to_string(emissions_) +
+                 " scheduled, " + std::to_string(emissions_missed_) + " missed (their frame had played), " +
+                 std::to_string(emit_failures_) + " refused" + (emit_failures_ ? " (" + emit_error_ + ")" : "") + ", " +
+                 std::to_string(emitter_->late_emissions()) + " late");
+    if (reporter_)
+      for (const auto& [id, r] : remote_)
+        if (id != device1_ && r.offset_s)
+          log_->info("tum: recordings pair " + id + "'s audio clock at " + std::to_string(*r.offset_s) + " s from " + device1_ + "'s");
+  }
+
   void note_failure(const std::string& why) {
     if (failed_++ == 0) first_failure_ = why;
   }
@@ -403,6 +631,25 @@ class TumLocalizer final : public Localizer {
 
   Logger* log_ = nullptr;
   Link* link_ = nullptr;
+  const Clock* clock_ = nullptr;
+  Emitter* emitter_ = nullptr;
+  // live roles
+  bool live_ = false, fixed_roles_ = false, can_work_ = false, emitting_ = false, warned_no_pair_ = false;
+  double sync_period_s_ = 0.25, elect_tie_s_ = 0.002, exchange_period_s_ = 1.0 / 3.0, tone_delay_s_ = 0.07, tone_jitter_s_ = 0.05;
+  double tone_gain_ = 0.8;
+  double schedule_ahead_s_ = 0.2, start_delay_s_ = 1.0;
+  int sync_samples_ = 8, sync_min_samples_ = 4;
+  std::size_t elect_devices_ = 2;
+  std::vector<std::string> elect_order_;
+  SignalSpec tone1_, tone2_;
+  double next_ping_s_ = -kInf, next_role_s_ = -kInf, anchor_s_ = 0.0;
+  std::uint64_t ping_seq_ = 0, anchor_frame_ = 0, emissions_ = 0, emissions_missed_ = 0, emit_failures_ = 0, conflicting_roles_ = 0;
+  std::int64_t next_k_ = 0;
+  std::string emit_error_;
+  std::map<std::string, std::vector<RoundTrip>> trips_;
+  std::map<std::string, SyncTable> tables_;
+  std::optional<Role> role_;
+  std::optional<ClockEstimate> device2_offset_;
   std::uint64_t subscription_ = 0;
   std::string instance_, device_, prefix_, detector_, device1_, device2_;
   bool reporter_ = false;
@@ -471,6 +718,28 @@ const ParamSchema& schema() {
                   "1-sigma height of a device relative to device 1 (0 = none); only matters where the geometry leaves height unobservable."),
       bool_param("log_fixes", false, "Log every fix and every root at debug level (log_level: debug)."),
       float_param("std_floor_m", 0.0, 0.0, 10.0, "m", "Added in quadrature to every reported std (unmodelled errors)."),
+      // live roles (a node with an emitter; docs/tum.md "Live roles")
+      float_param("sync_period_s", 0.25, 0.01, 60.0, "s", "live: how often each node pings every other (link round trips) and reports its clock table."),
+      int_param("sync_samples", 8, 1, 1000, "", "live: a peer's clock offset and RTT are the medians over its last this many round trips."),
+      int_param("sync_min_samples", 4, 1, 1000, "", "live: round trips needed before a peer's clock counts (election, device 2's schedule)."),
+      int_param("elect_devices", 2, 2, 1000, "", "live: the election waits for the clock tables of this many devices, each measured to every other."),
+      float_param("elect_tie_s", 0.002, 0.0, 10.0, "s", "live: pairs whose RTT is within this of the smallest tie; the best ranked pair wins (elect_order)."),
+      string_param("elect_order", "",
+                   "live: tie-break ranking, comma-separated device ids (the rest follow by id); device 1 is the better ranked of the pair."),
+      float_param("exchange_period_s", 1.0 / 3.0, 0.05, 60.0, "s", "live: working device 1 emits its tone every this long (the paper's 3 exchanges/s)."),
+      float_param("tone_delay_s", 0.07, 0.0, 5.0, "s",
+                  "live: working device 2 emits this long (plus the jitter) after device 1 (on device 1's clock, through "
+                  "the link sync); delay + jitter must stay below pair_window_s minus the sync error and the propagation."),
+      float_param("tone_jitter_s", 0.05, 0.0, 5.0, "s",
+                  "live: device 2's delay varies by up to this from exchange to exchange (a fixed pseudo-random sequence): "
+                  "the recordings' clock pairing tells the rounds apart by the interval between the tones."),
+      float_param("tone_gain", 0.8, 0.0, 1.0, "", "live: gain of the emitted tones."),
+      float_param("schedule_ahead_s", 0.2, 0.01, 10.0, "s", "live: emissions are handed to the emitter this long before they play."),
+      float_param("start_delay_s", 1.0, 0.0, 60.0, "s", "live: the first exchange is this long after the election's announcement."),
+      float_param("tone_f0_hz", 2000.0, 20.0, 96000.0, "Hz", "live: device 1's tone sweeps tone_f0_hz -> tone_f1_hz, device 2's the reverse."),
+      float_param("tone_f1_hz", 8000.0, 20.0, 96000.0, "Hz", "live: see tone_f0_hz."),
+      float_param("tone_duration_s", 0.04, 0.001, 2.0, "s", "live: length of each tone."),
+      float_param("tone_fade_s", 0.004, 0.0, 1.0, "s", "live: raised-cosine fade in and out of each tone."),
   };
   return schema;
 }

@@ -17,6 +17,9 @@
 // particle filter (tracker.hpp, `filter: particle`), and publishes one Estimate per device:
 // reference = device 1, frame "body", t_s = device 1's tone emission on its clock (one snapshot per
 // exchange), position = the device's body origin, std_m, confidence, flags.
+// Live (HostContext::emitter set, docs/tum.md "Live roles"): every instance also synchronises its host
+// clock with the others' over link round trips, the nodes elect the working pair (closest clocks,
+// sync.hpp), and the two working devices emit their tones through the emitter on the elected schedule.
 #pragma once
 
 #include "locus/plugin.hpp"

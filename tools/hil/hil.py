@@ -1,8 +1,9 @@
 #!/usr/bin/python3
 """Hardware-in-the-loop run of a localizer (`./run hil NAME`, docs/room.md): live nodes in a virtual room.
 
-`locble` is hil_locble.py (BlueZ through dbusmock and a fake IIO IMU, played by `locus feed`); the process
-runner and the other pieces both runs use are hil_common.py. This file: the command line and `amil`.
+`locble` is hil_locble.py (BlueZ through dbusmock and a fake IIO IMU, played by `locus feed`), `tum`
+hil_tum.py (TUM's live roles: link sync, election, emissions); the process runner and the other pieces
+the runs share are hil_common.py. This file: the command line and `amil`.
 
 For `amil`: simulates the layout (`locus simulate amil`: the player's triangle gesture and 12 listeners;
 the live protocol: the player pauses 0.8-1.0 s at each corner, long enough for its beep), then starts
@@ -30,7 +31,6 @@ import argparse
 import csv
 import json
 import os
-import re
 import shutil
 import signal
 import statistics
@@ -44,13 +44,15 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, os.path.join(ROOT, "tools", "scripts"))
 sys.path.insert(0, HERE)
-from hil_common import Failure, Run, read_jsonl, rss_mb, start_map_node, start_mosquitto, wait_for  # noqa: E402
+from hil_common import (Failure, Run, check_alive, read_jsonl, sample_peaks, start_map_node, start_room,  # noqa: E402
+                        stop_nodes, stop_room, wait_for)
 from map_measure import cpu_s  # noqa: E402
 import hil_locble  # noqa: E402
+import hil_tum  # noqa: E402
 
 import yaml  # noqa: E402
 
-LIVE = {"amil", "locble"}  # localizers with a live HIL run (locble: hil_locble.py)
+LIVE = {"amil", "locble", "tum"}  # localizers with a live HIL run (locble: hil_locble.py, tum: hil_tum.py)
 
 
 def layout_for(args, bin_dir, out):
@@ -125,34 +127,10 @@ def hil_amil(args, bin_dir, out, run):
           f"player + {args.listeners} listeners -> {out}/layout", flush=True)
     layout, scene, player, listeners = layout_for(args, bin_dir, out)
 
-    server = f"locus_hil_{os.getpid()}"
-    print(f"== 2/5 jackd -n {server} -d dummy -p {args.period}; mosquitto; locus room", flush=True)
-    env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1", JACK_DEFAULT_SERVER=server)
-    rt = ["-R", "-P", "70"] if args.realtime else ["-r"]
-    jackd = run.start("jackd", ["jackd", "-n", server, *rt, "-S", "-d", "dummy", "-r", "44100", "-p", str(args.period)], env=env)
-    try:
-        wait_for(lambda: subprocess.run(["jack_lsp", "-s", server], capture_output=True, env=env).returncode == 0, 20,
-                 "jackd to answer", [("jackd", jackd)])
-    except Failure as e:
-        with open(os.path.join(out, "logs", "jackd.log"), errors="replace") as f:
-            if "Too many servers already active" in f.read():  # JACK's registry: 8 slots, dead servers keep theirs
-                raise Failure(f"{e}: JACK's server registry is full; `python3 tools/jack/reclaim_registry.py` "
-                              "frees the slots that dead servers still hold (--list shows them)") from None
-        raise
-    mqtt_port, broker = start_mosquitto(run, out)
-
-    room_out = os.path.join(out, "run")
-    origins_csv = os.path.join(out, "node_origins.csv")
-    room_log = os.path.join(out, "logs", "room.out")
-    room = run.start("room", [locus, "room", layout, room_out, "--server", server, "--skew", "scene", "--seed",
-                              str(args.seed), "--lead-in", "2", "--reflections", str(args.reflections),
-                              "--self-gain", str(args.self_gain), "--node-origins", origins_csv], env=env, stdout=open(room_log, "w"))
-
-    def room_said(pattern):
-        with open(room_log) as f:
-            return re.search(pattern, f.read())
-    # its ports and every IIO tree exist once it says so
-    wait_for(lambda: room_said(r"room: \d+ devices of"), 30, "the room's ports and IIO trees", [("room", room)])
+    print(f"== 2/5 jackd -d dummy -p {args.period}; mosquitto; locus room", flush=True)
+    rm = start_room(run, out, os.path.join(bin_dir, "locus"), layout, args)
+    server, env, jackd, mqtt_port, broker, room = rm.server, rm.env, rm.jackd, rm.mqtt_port, rm.broker, rm.proc
+    room_out, origins_csv, room_log, room_said = rm.out, rm.origins_csv, rm.log, rm.said
 
     print(f"== 3/5 {1 + len(listeners)} locusd nodes (JACK capture/playback, IIO IMU, MQTT link, amil), one gesture",
           flush=True)
@@ -200,15 +178,8 @@ def hil_amil(args, bin_dir, out, run):
         return [e for e in read_jsonl(est_path) if e.get("type") == "estimate"]
     deadline = time.monotonic() + layout_s + 2.0 + args.wait
     while time.monotonic() < deadline:
-        for k, p in pids.items():
-            try:
-                rss, shm = rss_mb(p)
-                peak_rss[k], peak_shm[k] = max(peak_rss[k], rss), max(peak_shm[k], shm)
-            except (FileNotFoundError, ProcessLookupError):
-                pass
-        for name, p in alive:
-            if p.poll() is not None:
-                raise Failure(f"{name} exited ({p.returncode}) during the gesture; see {out}/logs")
+        sample_peaks(pids, peak_rss, peak_shm)
+        check_alive(alive, "the gesture", out)
         if len({e["target"] for e in estimates()}) >= len(listeners) and time.monotonic() > t0 + layout_s:
             break
         time.sleep(0.1)
@@ -224,30 +195,8 @@ def hil_amil(args, bin_dir, out, run):
             time.sleep(0.02)
     print("== 4/5 stop the nodes (their audio origins), then the room (the truth)", flush=True)
     stop_sse.set()
-    origins, xruns, lost = {}, {}, {}
-    for ident in [player] + listeners:
-        rc = run.stop("node-" + ident)
-        if rc != 0:
-            raise Failure(f"locusd {ident} exited with {rc}; see {out}/logs/node-{ident}.log")
-        with open(os.path.join(out, "logs", f"node-{ident}.log")) as f:
-            text = f.read()
-        mo = re.search(rf"device {re.escape(ident)}: audio frame 0 at CLOCK_MONOTONIC ([0-9.]+) s", text)
-        if mo:
-            origins[ident] = float(mo.group(1))
-        ms = re.search(rf"device {re.escape(ident)}: (\d+) frames processed, (\d+) lost .*playback: (\d+) xruns", text)
-        if ms:
-            lost[ident], xruns[ident] = int(ms.group(2)), int(ms.group(3))
-    with open(origins_csv, "w") as f:
-        f.write("device,audio_origin_monotonic_s\n")
-        for k, v in origins.items():
-            f.write(f"{k},{v:.9f}\n")
-    rc = run.stop("room")
-    if rc != 0:
-        raise Failure(f"locus room exited with {rc}; see {out}/logs/room.log")
-    run.stop("mosquitto")
-    run.stop("jackd")
-    with open(room_log) as f:
-        room_summary = f.read().strip().splitlines()[-1]
+    origins, lost, xruns, _ = stop_nodes(run, out, [player] + listeners, origins_csv)
+    room_summary = stop_room(run, out, room_log)
 
     print("== 5/5 locus eval --metric amil", flush=True)
     est = os.path.join(out, "estimates.jsonl")
@@ -313,7 +262,7 @@ def hil_amil(args, bin_dir, out, run):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("name", help="localizer (amil, locble)")
+    ap.add_argument("name", help="localizer (amil, locble, tum)")
     ap.add_argument("--bin", default=os.path.join(ROOT, "build", "bin"))
     ap.add_argument("--out", help="run directory (default: a fresh temporary one, printed)")
     ap.add_argument("--listeners", type=int, default=12, help="listeners of the layout (1..12)")
@@ -331,7 +280,11 @@ def main():
     ap.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the estimates after the layout")
     ap.add_argument("--json", help="write the figures here")
     ap.add_argument("--imu-events", action="store_true", help="the nodes also write their IMU samples (JSON lines)")
-    ap.add_argument("--scene", help="locble: the layout, any LocBLE scene (default: locus simulate locble --seed N)")
+    ap.add_argument("--scene", help="locble, tum: the layout, any scene of the family (default: locus simulate FAMILY --seed N)")
+    ap.add_argument("--track", default="static", choices=["static", "ellipse"],
+                    help="tum: the simulated layout's moving device (locus simulate tum -o track=)")
+    ap.add_argument("--duration", type=float, default=0.0,
+                    help="tum: seconds of exchanges (0 = the layout's span: its truth, or 12 s for a static one)")
     ap.add_argument("--speed", type=float, default=1.0,
                     help="locble: scene seconds per wall second; only 1: the IMU's time base cannot be compressed "
                          "honestly (docs/room.md)")
@@ -353,7 +306,7 @@ def main():
     if not 1 <= args.listeners <= 12:
         print("hil: --listeners: expected 1..12", file=sys.stderr)
         return 2
-    if args.name == "amil":
+    if args.name in ("amil", "tum"):
         for tool in ("jackd", "jack_lsp", "mosquitto"):
             if shutil.which(tool) is None:
                 print(f"hil: {tool} not found (tools/install-deps.sh installs it)", file=sys.stderr)
@@ -382,6 +335,8 @@ def main():
     try:
         if args.name == "amil":
             hil_amil(args, args.bin, out, run)
+        elif args.name == "tum":
+            hil_tum.hil_tum(args, args.bin, out, run)
         else:
             hil_locble.hil_locble(args, args.bin, out, run)
         print(f"hil finished in {time.monotonic() - t0:.1f} s; files in {out}")

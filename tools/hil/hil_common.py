@@ -127,3 +127,114 @@ def start_map_node(run, name, cmd, env, listen, title, events, stop_sse, log_hin
     threading.Thread(target=sse_client, args=(host, int(port), [], stop_sse, lambda m, now: events.append((now, m))),
                      daemon=True).start()
     return p, url
+
+
+def start_jackd(run, out, server, period, realtime, env):
+    """jackd -n SERVER (dummy driver, 44.1 kHz, synchronous, one period of `period` frames; -R -P 70 when
+    `realtime`), answering when this returns; a full JACK server registry is named with the command that
+    frees it. The jackd process."""
+    rt = ["-R", "-P", "70"] if realtime else ["-r"]
+    jackd = run.start("jackd", ["jackd", "-n", server, *rt, "-S", "-d", "dummy", "-r", "44100", "-p", str(period)], env=env)
+    try:
+        wait_for(lambda: subprocess.run(["jack_lsp", "-s", server], capture_output=True, env=env).returncode == 0, 20,
+                 "jackd to answer", [("jackd", jackd)])
+    except Failure as e:
+        with open(os.path.join(out, "logs", "jackd.log"), errors="replace") as f:
+            if "Too many servers already active" in f.read():  # JACK's registry: 8 slots, dead servers keep theirs
+                raise Failure(f"{e}: JACK's server registry is full; `python3 tools/jack/reclaim_registry.py` "
+                              "frees the slots that dead servers still hold (--list shows them)") from None
+        raise
+    return jackd
+
+
+def node_log_figures(out, ident):
+    """From logs/node-<ident>.log of a stopped locusd: (audio origin on CLOCK_MONOTONIC or None, frames
+    lost or None, playback xruns or None, the log's text)."""
+    import re
+    with open(os.path.join(out, "logs", f"node-{ident}.log"), errors="replace") as f:
+        text = f.read()
+    mo = re.search(rf"device {re.escape(ident)}: audio frame 0 at CLOCK_MONOTONIC ([0-9.]+) s", text)
+    ms = re.search(rf"device {re.escape(ident)}: (\d+) frames processed, (\d+) lost .*playback: (\d+) xruns", text)
+    return (float(mo.group(1)) if mo else None, int(ms.group(2)) if ms else None, int(ms.group(3)) if ms else None, text)
+
+
+def sample_peaks(pids, peak_rss, peak_shm=None):
+    """Raises each process's peak RSS (and its shared-memory part) to what /proc shows now."""
+    for k, p in pids.items():
+        try:
+            rss, shm = rss_mb(p)
+        except (FileNotFoundError, ProcessLookupError):
+            continue
+        peak_rss[k] = max(peak_rss[k], rss)
+        if peak_shm is not None:
+            peak_shm[k] = max(peak_shm[k], shm)
+
+
+def check_alive(alive, during, out):
+    """Failure naming the first of `alive` ((name, Popen)...) that has exited."""
+    for name, p in alive:
+        if p.poll() is not None:
+            raise Failure(f"{name} exited ({p.returncode}) during {during}; see {out}/logs")
+
+
+def stop_nodes(run, out, idents, origins_csv):
+    """Stops the locusd nodes `idents` (SIGTERM; a non-zero exit is a Failure), reads each one's audio
+    origin, frames lost and playback xruns from its log and writes the origins for `locus room
+    --node-origins`. (origins, frames lost, xruns, log texts), by id."""
+    origins, lost, xruns, logs = {}, {}, {}, {}
+    for ident in idents:
+        rc = run.stop("node-" + ident)
+        if rc != 0:
+            raise Failure(f"locusd {ident} exited with {rc}; see {out}/logs/node-{ident}.log")
+        origin, frames_lost, node_xruns, logs[ident] = node_log_figures(out, ident)
+        if origin is not None:
+            origins[ident] = origin
+        if frames_lost is not None:
+            lost[ident], xruns[ident] = frames_lost, node_xruns
+    with open(origins_csv, "w") as f:
+        f.write("device,audio_origin_monotonic_s\n")
+        for k, v in origins.items():
+            f.write(f"{k},{v:.9f}\n")
+    return origins, lost, xruns, logs
+
+
+def stop_room(run, out, room_log):
+    """Stops the room (it writes the truth; a non-zero exit is a Failure), then mosquitto and jackd;
+    the room's summary line."""
+    rc = run.stop("room")
+    if rc != 0:
+        raise Failure(f"locus room exited with {rc}; see {room_log}")
+    run.stop("mosquitto")
+    run.stop("jackd")
+    with open(room_log) as f:
+        return f.read().strip().splitlines()[-1]
+
+
+class Room:
+    """What start_room() started: the JACK server's name and environment, the processes, the paths."""
+
+    def __init__(self, **kw):
+        self.__dict__.update(kw)
+
+    def said(self, pattern):
+        """The first match of `pattern` in the room's output so far (or None)."""
+        import re
+        with open(self.log) as f:
+            return re.search(pattern, f.read())
+
+
+def start_room(run, out, locus, layout, args, extra=()):
+    """jackd (its own server name), mosquitto and `locus room LAYOUT OUT/run` on them (the layout's skews,
+    --seed, --reflections, --self-gain of `args`, the nodes' origins from OUT/node_origins.csv; `extra`
+    room options), its ports and IIO trees up when this returns. A Room."""
+    server = f"locus_hil_{os.getpid()}"
+    env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1", JACK_DEFAULT_SERVER=server)
+    jackd = start_jackd(run, out, server, args.period, args.realtime, env)
+    mqtt_port, broker = start_mosquitto(run, out)
+    r = Room(server=server, env=env, jackd=jackd, mqtt_port=mqtt_port, broker=broker, out=os.path.join(out, "run"),
+             origins_csv=os.path.join(out, "node_origins.csv"), log=os.path.join(out, "logs", "room.out"))
+    r.proc = run.start("room", [locus, "room", layout, r.out, "--server", server, "--skew", "scene", "--seed", str(args.seed),
+                                "--lead-in", "2", "--reflections", str(args.reflections), "--self-gain", str(args.self_gain),
+                                "--node-origins", r.origins_csv, *extra], env=env, stdout=open(r.log, "w"))
+    wait_for(lambda: r.said(r"room: \d+ devices of"), 30, "the room's ports and IIO trees", [("room", r.proc)])
+    return r

@@ -49,6 +49,8 @@ Subcommand add_room_command(CLI::App& cli) {
   cmd->add_option("--imu-rate-hz", opts->imu_rate_hz, "IMU scans per second per device")->check(CLI::Range(1.0, 2000.0));
   cmd->add_option("--imu-error-scale", opts->imu_error_scale, "x the simulator's phone IMU errors (0 = ideal)")->check(CLI::Range(0.0, 10.0));
   cmd->add_flag("!--no-imu", opts->imu, "no fake IIO IMUs");
+  cmd->add_flag("--magnetometer", opts->magnetometer,
+                "the IMUs also have a magnetometer reading the layout's truth.magnetic_field_world (needs it)");
   cmd->add_option("--seed", opts->renderer.seed, "noise and IMU errors");
   cmd->add_option("--node-origins", opts->node_origins,
                   "CSV device,seconds read when the room stops: each node's audio frame 0 on CLOCK_MONOTONIC (locusd logs it), "

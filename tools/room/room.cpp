@@ -210,6 +210,10 @@ class ImuFeeder {
  public:
   ImuFeeder(const RoomOptions& opts, const Layout& layout, const RoomRenderer& renderer, const JackRoom& jack)
       : jack_(jack), rate_(opts.imu_rate_hz) {
+    if (opts.magnetometer) {  // run_room checked that the layout has the field
+      const auto& m = *layout.scene.truth->magnetic_field_world_ut;
+      field_ut_ = Eigen::Vector3d(m[0], m[1], m[2]);
+    }
     for (std::size_t d = 0; d < layout.devices.size(); ++d) {
       Dev dev;
       dev.id = layout.devices[d].id;
@@ -219,13 +223,15 @@ class ImuFeeder {
       std::snprintf(freq, sizeof freq, "%.6f", opts.imu_rate_hz);
       io.sampling_frequency = freq;
       io.timestamp_clock = "realtime";  // the kernel's default; the node's `iio` source switches it to monotonic
+      io.magn = opts.magnetometer;
       dev.tree->add_imu(0, io);
       dev.fifo = dev.tree->path("dev/iio:device0");
       dev.accel_scale = std::stod(io.accel_scale);
       dev.gyro_scale = std::stod(io.gyro_scale);
+      dev.magn_scale_ut = std::stod(io.magn_scale) * 100.0;  // Gauss per LSB -> µT per LSB
       sim::motion::PhoneImuConfig ic;  // the simulator's consumer 6-axis part (amil family values)
       ic.rate_hz = opts.imu_rate_hz;
-      ic.magnetometer = false;
+      ic.magnetometer = opts.magnetometer;  // noise and hard iron: the simulator's phone defaults
       ic.gyro_noise_density = 1.6e-4;
       ic.accel_bias_std_mps2 = 0.04;
       ic.gyro_bias_std_radps = 0.004;
@@ -260,13 +266,13 @@ class ImuFeeder {
     std::unique_ptr<sim::motion::PhoneImu> imu;
     std::unique_ptr<RoomTimeTrajectory> traj;
     sim::Rng rng;
-    double accel_scale = 1.0, gyro_scale = 1.0;
+    double accel_scale = 1.0, gyro_scale = 1.0, magn_scale_ut = 1.0;
     int fd = -1;
     std::atomic<std::uint64_t> written{0}, dropped{0};
     Dev() = default;
     Dev(Dev&& o) noexcept
         : id(std::move(o.id)), fifo(std::move(o.fifo)), tree(std::move(o.tree)), imu(std::move(o.imu)), traj(std::move(o.traj)),
-          rng(o.rng), accel_scale(o.accel_scale), gyro_scale(o.gyro_scale), fd(o.fd), written(o.written.load()), dropped(o.dropped.load()) {}
+          rng(o.rng), accel_scale(o.accel_scale), gyro_scale(o.gyro_scale), magn_scale_ut(o.magn_scale_ut), fd(o.fd), written(o.written.load()), dropped(o.dropped.load()) {}
   };
 
   void run() {
@@ -293,12 +299,15 @@ class ImuFeeder {
       const auto ns = static_cast<std::int64_t>(std::llround(mono * 1e9));
       for (auto& d : devs_) {
         if (d.fd < 0) d.fd = ::open(d.fifo.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);  // ENXIO: no reader yet
-        const sim::ImuReading r = d.imu->sample(*d.traj, std::nullopt, t, d.rng);  // every device's model advances
+        const sim::ImuReading r = d.imu->sample(*d.traj, field_ut_, t, d.rng);  // every device's model advances
         if (d.fd < 0) continue;
-        const std::int16_t raw[6]{iio_fake::to_lsb(r.accel_mps2.x(), d.accel_scale), iio_fake::to_lsb(r.accel_mps2.y(), d.accel_scale),
+        const Eigen::Vector3d mag = r.mag_ut.value_or(Eigen::Vector3d::Zero());
+        const std::int16_t raw[9]{iio_fake::to_lsb(r.accel_mps2.x(), d.accel_scale), iio_fake::to_lsb(r.accel_mps2.y(), d.accel_scale),
                                   iio_fake::to_lsb(r.accel_mps2.z(), d.accel_scale), iio_fake::to_lsb(r.gyro_radps.x(), d.gyro_scale),
-                                  iio_fake::to_lsb(r.gyro_radps.y(), d.gyro_scale), iio_fake::to_lsb(r.gyro_radps.z(), d.gyro_scale)};
-        const std::vector<std::uint8_t> scan = iio_fake::pack_accel_gyro_scan(raw, ns);
+                                  iio_fake::to_lsb(r.gyro_radps.y(), d.gyro_scale), iio_fake::to_lsb(r.gyro_radps.z(), d.gyro_scale),
+                                  iio_fake::to_lsb(mag.x(), d.magn_scale_ut), iio_fake::to_lsb(mag.y(), d.magn_scale_ut),
+                                  iio_fake::to_lsb(mag.z(), d.magn_scale_ut)};
+        const std::vector<std::uint8_t> scan = iio_fake::pack_s16_scan(raw, field_ut_ ? 9 : 6, ns);  // the magn channels last
         const ssize_t w = ::write(d.fd, scan.data(), scan.size());
         if (w == static_cast<ssize_t>(scan.size())) {
           d.written.fetch_add(1);
@@ -314,6 +323,7 @@ class ImuFeeder {
 
   const JackRoom& jack_;
   double rate_;
+  std::optional<Eigen::Vector3d> field_ut_;  ///< world frame; set: the IMUs have a magnetometer
   std::vector<Dev> devs_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
@@ -486,6 +496,10 @@ int run_room(const RoomOptions& opts) {
     rc.skew_ppm = parse_skew(opts.skew, layout);
     if (!rc.room_size_m) rc.room_size_m = layout.room_size_m;
     if (!(opts.imu_rate_hz >= 1.0 && opts.imu_rate_hz <= 2000.0)) throw std::invalid_argument("--imu-rate-hz: expected 1..2000 Hz");
+    if (opts.magnetometer && !opts.imu) throw std::invalid_argument("--magnetometer needs the IMUs (not with --no-imu)");
+    if (opts.magnetometer && (!layout.scene.truth || !layout.scene.truth->magnetic_field_world_ut))
+      throw std::invalid_argument("--magnetometer: " + opts.layout_dir +
+                                  "/scene.yaml has no truth.magnetic_field_world (the field the magnetometers read)");
   } catch (const std::exception& e) {
     std::cerr << "locus room: " << e.what() << "\n";
     return app::kExitBadConfig;

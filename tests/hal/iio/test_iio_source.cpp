@@ -328,14 +328,11 @@ TEST(IioSource, MagnetometerOnTheSameDeviceInMicroTesla) {
   ASSERT_EQ(src.scan_bytes(), 32u);
   SensorQueue queue(64);
   src.start(queue);
-  const std::array<std::int16_t, 9> raw{1, 2, 3, 4, 5, 6, 1500, -2500, 3500};
+  const std::int16_t raw[9]{1, 2, 3, 4, 5, 6, 1500, -2500, 3500};
   std::thread writer([&] {
     FifoWriter w(tree.path("dev/iio:device0"));
     ASSERT_TRUE(w.connect());
-    std::vector<std::uint8_t> b(32, 0);
-    for (std::size_t i = 0; i < 9; ++i) put_le(b, 2 * i, static_cast<std::uint16_t>(raw[i]), 2);
-    put_le(b, 24, 42'000'000'000ULL, 8);
-    ASSERT_TRUE(w.write(b));
+    ASSERT_TRUE(w.write(locus::iio_fake::pack_accel_gyro_magn_scan(raw, 42'000'000'000LL)));  // what `locus room --magnetometer` writes
     wait_for([&] { return src.samples_produced() >= 1; });
   });
   ASSERT_TRUE(wait_for([&] { return src.samples_produced() >= 1; })) << src.error();

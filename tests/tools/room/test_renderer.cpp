@@ -5,6 +5,7 @@
 // coefficient, the device's own speaker times self_gain. Also: the layout reader's errors.
 #include <gtest/gtest.h>
 
+#include <csignal>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -13,6 +14,7 @@
 
 #include "locus/room/layout.hpp"
 #include "locus/room/renderer.hpp"
+#include "locus/room/room.hpp"
 
 namespace locus::room {
 namespace {
@@ -194,6 +196,33 @@ TEST(RoomLayout, ErrorsNameTheFileAndWhatWasExpected) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("device 'A': no position"), std::string::npos) << e.what();
   }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(RoomOptions, MagnetometerNeedsTheLayoutsField) {
+  // refused before any JACK server is asked for: exit 2 (a bad layout or option), the file named
+  const auto dir = std::filesystem::temp_directory_path() / ("locus-room-mag-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "scene.yaml") << "format: locus-scene/1\nname: x\nsample_rate: 44100\nspeed_of_sound: 343\n"
+                                       "environment: {room: [3, 4, 2]}\ndevices:\n  - id: A\n    mics:\n      - [0, 0, 0]\n"
+                                       "truth:\n  trajectories: truth.csv\n";
+  std::ofstream(dir / "truth.csv") << "t,id,x,y,z,qw,qx,qy,qz\n0,A,1,1,1,1,0,0,0\n";
+  RoomOptions o;
+  o.layout_dir = dir.string();
+  o.out_dir = (dir / "out").string();
+  o.server = "locus_room_test_no_such_server";
+  o.magnetometer = true;
+  sigset_t mask;  // run_room blocks the stop signals (its own sigtimedwait): restored below
+  pthread_sigmask(SIG_SETMASK, nullptr, &mask);
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run_room(o), 2);
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("scene.yaml has no truth.magnetic_field_world"), std::string::npos) << err;
+  o.imu = false;
+  testing::internal::CaptureStderr();
+  EXPECT_EQ(run_room(o), 2);
+  EXPECT_NE(testing::internal::GetCapturedStderr().find("--magnetometer needs the IMUs"), std::string::npos);
+  pthread_sigmask(SIG_SETMASK, &mask, nullptr);
   std::filesystem::remove_all(dir);
 }
 

@@ -39,6 +39,10 @@ struct RoomOptions {
   double imu_rate_hz = 100.0;
   double imu_error_scale = 1.0;        ///< × the simulator's phone IMU errors (sim::motion::PhoneImu)
   bool imu = true;                     ///< fake IIO IMU per device
+  /// The IMUs also carry a magnetometer (IIO magn channels) reading the layout's
+  /// truth.magnetic_field_world in each device's body frame, with the simulator's phone magnetometer
+  /// errors (noise, hard iron): what an attitude detector needs for an absolute heading (TUM).
+  bool magnetometer = false;
   std::string node_origins;            ///< CSV device,audio_origin_monotonic_s read at stop ("" = none)
   std::optional<double> stop_after_s;  ///< stop this long after the layout ended (else at SIGINT/SIGTERM)
 };
