@@ -114,6 +114,33 @@ Layout load_layout(const std::string& dir, double ease_s) {
     }
     l.devices.push_back(std::move(d));
   }
+  // Emitters that make a sound (beacons): a speaker port, no microphones; static at their anchor, or
+  // moving along their truth rows.
+  for (const auto& spec : l.scene.emitters) {
+    if (std::none_of(spec.emits.begin(), spec.emits.end(), [](const dsp::SignalSpec& s) { return s.acoustic(); })) continue;
+    LayoutDevice d;
+    d.id = spec.id;
+    d.emits = spec.emits;
+    d.emitter = true;
+    const auto it = rows.find(spec.id);
+    if (it != rows.end() && it->second.first.size() > 1) {
+      auto sampled = std::make_shared<sim::SampledTrajectory>(it->second.first, it->second.second);
+      d.times_s = it->second.first;
+      d.trajectory = sampled->is_static() ? std::shared_ptr<const sim::Trajectory>(sampled)
+                                          : std::make_shared<EasedTrajectory>(sampled, l.t_begin_s, ease_s);
+    } else if (spec.anchor_position_m) {
+      const auto& a = *spec.anchor_position_m;
+      d.trajectory = std::make_shared<sim::StaticTrajectory>(Eigen::Vector3d(a[0], a[1], a[2]));
+      d.times_s = {l.t_begin_s};
+    } else if (it != rows.end()) {
+      d.trajectory = std::make_shared<sim::StaticTrajectory>(it->second.second.front().position_m);
+      d.times_s = {l.t_begin_s};
+    } else {
+      throw std::runtime_error(yaml + ":" + std::to_string(spec.line) + ": emitter '" + spec.id +
+                               "': no position (expected an anchor, or rows of it in the scene's truth.csv)");
+    }
+    l.devices.push_back(std::move(d));
+  }
   if (l.room_size_m) {
     const Eigen::Vector3d& box = *l.room_size_m;
     for (const auto& d : l.devices) {
