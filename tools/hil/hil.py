@@ -47,10 +47,11 @@ sys.path.insert(0, HERE)
 from hil_common import Failure, Run, read_jsonl, rss_mb, start_map_node, start_mosquitto, wait_for  # noqa: E402
 from map_measure import cpu_s  # noqa: E402
 import hil_locble  # noqa: E402
+import hil_sync  # noqa: E402
 
 import yaml  # noqa: E402
 
-LIVE = {"amil", "locble"}  # localizers with a live HIL run (locble: hil_locble.py)
+LIVE = {"amil", "locble", "spyloc"}  # localizers with a live HIL run (locble: hil_locble.py; spyloc: hil_sync.py)
 
 
 def layout_for(args, bin_dir, out):
@@ -323,7 +324,9 @@ def main():
     ap.add_argument("--realtime", type=int, default=1, choices=[0, 1],
                     help="1 (default, as on a board): jackd -R -P 70, so jackd's, the room's and every node's process "
                          "threads run SCHED_FIFO when the user may (else jackd says so and runs without); 0: jackd -r")
-    ap.add_argument("--period", type=int, default=1024, help="JACK period (frames)")
+    ap.add_argument("--period", type=int, default=None,
+                    help="JACK period (frames; amil 1024, spyloc 256: a beacon's beep is due 50-75 ms after its sync, "
+                         "which must cross the link, one period and the node's pipeline first)")
     ap.add_argument("--reflections", type=int, default=0, choices=[0, 1], help="the room's image-source order")
     ap.add_argument("--self-gain", type=float, default=0.2,
                     help="the player's own speaker into its own microphone (the room's --self-gain)")
@@ -331,12 +334,16 @@ def main():
     ap.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the estimates after the layout")
     ap.add_argument("--json", help="write the figures here")
     ap.add_argument("--imu-events", action="store_true", help="the nodes also write their IMU samples (JSON lines)")
-    ap.add_argument("--scene", help="locble: the layout, any LocBLE scene (default: locus simulate locble --seed N)")
+    ap.add_argument("--scene", help="locble, spyloc: the layout, any scene of the family (default: locus simulate NAME --seed N)")
     ap.add_argument("--speed", type=float, default=1.0,
                     help="locble: scene seconds per wall second; only 1: the IMU's time base cannot be compressed "
                          "honestly (docs/room.md)")
-    ap.add_argument("--settle", type=float, default=1.0,
-                    help="locble: seconds the node runs on after the scene's end before it is stopped (its final update)")
+    ap.add_argument("--settle", type=float, default=None,
+                    help="seconds the nodes run on after the scene's end before they are stopped (their final updates; "
+                         "locble 1, spyloc 3)")
+    ap.add_argument("--duration", type=float, help="spyloc: the simulated layout's length (s; default the family's)")
+    ap.add_argument("--sync-first", type=float, default=1.0,
+                    help="spyloc: the first beacon's first sync this long after its node starts (the others staggered)")
     args = ap.parse_args()
 
     names = subprocess.run([os.path.join(args.bin, "locus"), "plugins", "--json"], capture_output=True, text=True)
@@ -353,7 +360,11 @@ def main():
     if not 1 <= args.listeners <= 12:
         print("hil: --listeners: expected 1..12", file=sys.stderr)
         return 2
-    if args.name == "amil":
+    if args.period is None:
+        args.period = 1024 if args.name == "amil" else 256
+    if args.settle is None:
+        args.settle = 1.0 if args.name == "locble" else 3.0
+    if args.name in ("amil",) + hil_sync.FAMILIES:
         for tool in ("jackd", "jack_lsp", "mosquitto"):
             if shutil.which(tool) is None:
                 print(f"hil: {tool} not found (tools/install-deps.sh installs it)", file=sys.stderr)
@@ -382,6 +393,8 @@ def main():
     try:
         if args.name == "amil":
             hil_amil(args, args.bin, out, run)
+        elif args.name in hil_sync.FAMILIES:
+            hil_sync.hil_sync(args, args.bin, out, run)
         else:
             hil_locble.hil_locble(args, args.bin, out, run)
         print(f"hil finished in {time.monotonic() - t0:.1f} s; files in {out}")

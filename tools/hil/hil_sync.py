@@ -1,0 +1,445 @@
+"""`./run hil spyloc` and `./run hil montage` (tools/hil/hil.py, docs/room.md "SpyLoc and Montage"): the
+sync-scheduled systems live, every sound emitted a known delay after a radio sync that travels over MQTT.
+
+The layout is a scene of the family (`locus simulate spyloc|montage --seed N`, or --scene DIR). Started and
+stopped here (hil_common.Run: own process groups, SIGTERM then SIGKILL on every exit path):
+  - jackd (dummy driver, its own server name, synchronous, --period frames), mosquitto (own port),
+  - `locus room LAYOUT` (--skew none): every speaker port into every microphone; the scene's beacons
+    (emitters with a sound) are speaker ports at their anchors; a fake IIO IMU per device,
+  - one `locusd --layout LAYOUT` per device, each a board: JACK capture and playback on the room's ports
+    (one JACK client, so capture and playback frame F are one instant), the `link` sync source (the radio
+    over MQTT: each arrival stamped), the MQTT link, and
+      spyloc   beacons: capture from nothing (its frame clock only), playback to the room, the `link`
+               source transmitting the beacon's own sync every period (the layout's sync.csv period; the
+               beacons staggered as in the scene), `sync_emitter` (its beep at its own sync's arrival +
+               sync_delay_s); the walker: config/spyloc.yaml's detectors and localizer, IIO IMU, the map;
+      montage  every walker: config/montage.yaml's detectors and localizer, IIO IMU, `sync_emitter` (its
+               Gold code at the start signal's arrival + delay_s + k·period_s); the first walker also
+               transmits the start signal once (as W1 in the simulator); the reporter serves the map.
+After the layout and a settle, every node is stopped (its final estimates and its log: audio origin, sync
+counts and latency, emissions), then the room (the truth as a scene). Scored with `locus eval RUN OUT
+--metric spyloc|montage` (the table and summary the replay prints), and the same layout replayed
+(`locus replay LAYOUT -c config/FAMILY.yaml`) and scored for the comparison.
+"""
+import csv
+import json
+import os
+import re
+import shutil
+import statistics
+import subprocess
+import threading
+import time
+
+import yaml
+
+from hil_common import Failure, read_jsonl, rss_mb, start_map_node, start_mosquitto, wait_for
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+FAMILIES = ("spyloc", "montage")
+
+
+def layout_for(args, locus, out):
+    """(layout dir, scene dict): --scene DIR as given, else `locus simulate FAMILY --seed N`."""
+    if args.scene:
+        layout = os.path.abspath(args.scene)
+    else:
+        layout = os.path.join(out, "layout")
+        cmd = [locus, "simulate", args.name, layout, "--seed", str(args.seed), "-q"]
+        if args.duration:
+            cmd += ["--duration", str(args.duration)]
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        if r.returncode != 0:
+            raise Failure(f"{' '.join(cmd)} failed: {r.stderr}")
+    path = os.path.join(layout, "scene.yaml")
+    try:
+        with open(path) as f:
+            scene = yaml.safe_load(f)
+    except (OSError, yaml.YAMLError) as e:
+        raise Failure(f"--scene: cannot read {path}: {e}")
+    return layout, scene
+
+
+def read_syncs(layout, scene):
+    """[(local t, source)] of every device's sync.csv, by device."""
+    out = {}
+    for d in scene.get("devices") or []:
+        if d.get("sync"):
+            with open(os.path.join(layout, d["sync"])) as f:
+                out[d["id"]] = [(float(r["t"]), r["source"]) for r in csv.DictReader(f)]
+    return out
+
+
+def plan_spyloc(scene, layout):
+    """Walkers (devices with mics) and beacons (anchored emitters with a multitone and a sync_delay_s),
+    each beacon's sync period (median interval of its syncs in the layout's sync.csv) and first sync."""
+    beacons = []
+    for e in scene.get("emitters") or []:
+        sig = next((x for x in e.get("emits") or [] if x.get("type") == "multitone"), None)
+        if sig is not None and e.get("anchor") and sig.get("sync_delay_s") is not None:
+            beacons.append(e["id"])
+    walkers = [d["id"] for d in scene.get("devices") or [] if d.get("mics")]
+    if len(beacons) < 3 or not walkers:
+        raise Failure(f"{layout}/scene.yaml: not a SpyLoc scene (expected >= 3 anchored multitone emitters with "
+                      f"sync_delay_s under emitters:, and a device with mics; found {len(beacons)} and {len(walkers)})")
+    syncs = read_syncs(layout, scene)
+    periods = {}
+    for b in beacons:
+        t = sorted(x for rows in syncs.values() for x, s in rows if s == b)
+        gaps = [y - x for x, y in zip(t, t[1:]) if y > x]
+        periods[b] = statistics.median(gaps) if gaps else 1.0
+    return walkers, beacons, periods
+
+
+def jack_audio(server, ident, channels, connect):
+    return {"source": "jack", "params": {"server": server, "client_name": ident, "channels": channels, "connect": connect}}
+
+
+def jack_playback(server, ident):
+    return {"sink": "jack", "params": {"server": server, "client_name": ident, "channels": 1, "connect": f"^room:{ident}_spk$"}}
+
+
+def replay_config(name):
+    with open(os.path.join(ROOT, "config", name + ".yaml")) as f:
+        return yaml.safe_load(f)
+
+
+def absolute_models(localizers):
+    for loc in localizers:
+        p = loc.get("params") or {}
+        for k in ("los_model",):
+            if p.get(k) and not os.path.isabs(p[k]):
+                p[k] = os.path.join(ROOT, p[k])
+    return localizers
+
+
+def node_config(args, ident, role, server, mqtt_port, room_out, out_jsonl, dev, extra):
+    """One board's config. role: beacon | walker | montage."""
+    base = {
+        "log_level": "info",
+        "sample_rate_hz": 44100,
+        "output": {"path": out_jsonl, "events": ["estimate", "radio_sync"] + (["audio_detection"] if role != "beacon" else [])},
+        "link": {"type": "mqtt", "params": {"host": "127.0.0.1", "port": mqtt_port, "connect_timeout_s": 10}},
+    }
+    device = {"id": ident}
+    if role == "beacon":
+        # capture from nothing: the node's frame clock (capture frame F = playback frame F, one JACK client)
+        device["audio"] = jack_audio(server, ident, 1, "")
+        device["playback"] = jack_playback(server, ident)
+        device["sync"] = {"source": "link", "params": {"sources": ident, "send_period_s": extra["period_s"],
+                                                       "send_first_s": extra["first_s"]}}
+        base["devices"] = [device]
+        base["localizers"] = [{"plugin": "sync_emitter"}]
+        return base
+    replay = replay_config(args.name)
+    template = next(d for d in replay["devices"] if d["id"] == "*")
+    device["audio"] = jack_audio(server, ident, len(dev["mics"]), f"^room:{ident}_mic_[0-9]+$")
+    device["playback"] = jack_playback(server, ident)
+    device["imu"] = {"source": "iio", "params": {"root": os.path.join(room_out, "iio", ident), "device": "lsm6dsl",
+                                                  "mode": "buffered"}}
+    device["sync"] = {"source": "link", "params": extra.get("sync_params", {})}
+    device["detectors"] = template["detectors"]
+    base["devices"] = [device]
+    base["localizers"] = absolute_models(replay["localizers"]) + extra.get("localizers", [])
+    return base
+
+
+def log_text(out, name):
+    try:
+        with open(os.path.join(out, "logs", name + ".log"), errors="replace") as f:
+            return f.read()
+    except FileNotFoundError:
+        return ""
+
+
+def parse_node_log(text, ident):
+    """What a node logged at exit: audio origin, frames/xruns, link sync counts and latency, emissions."""
+    r = {}
+    m = re.search(rf"device {re.escape(ident)}: audio frame 0 at CLOCK_MONOTONIC ([0-9.]+) s", text)
+    if m:
+        r["origin_s"] = float(m.group(1))
+    m = re.search(rf"device {re.escape(ident)}: (\d+) frames processed, (\d+) lost .*playback: (\d+) xruns", text)
+    if m:
+        r["frames_lost"], r["playback_xruns"] = int(m.group(2)), int(m.group(3))
+    m = re.search(r"link sync \S+: (\d+) sent as \S+, (\d+) received \(from ([^)]*)\), (\d+) from other sources, (\d+) malformed, "
+                  r"(\d+) dropped; (?:one-way latency .* median ([0-9.]+) ms, p90 ([0-9.]+) ms, max ([0-9.]+) ms)?", text)
+    if m:
+        r["sync"] = {"sent": int(m.group(1)), "received": int(m.group(2)), "malformed": int(m.group(5)),
+                     "dropped": int(m.group(6))}
+        if m.group(7):
+            r["sync"].update({"latency_median_ms": float(m.group(7)), "latency_p90_ms": float(m.group(8)),
+                              "latency_max_ms": float(m.group(9))})
+    m = re.search(r"sync_emitter \S+: (\d+) syncs, (\d+) emissions scheduled, (\d+) late \(not scheduled\), (\d+) refused, "
+                  r"(\d+) cut by the emitter; (?:lead min ([-0-9.]+) ms, median ([-0-9.]+) ms)?", text)
+    if m:
+        r["emit"] = {"syncs": int(m.group(1)), "scheduled": int(m.group(2)), "late": int(m.group(3)),
+                     "refused": int(m.group(4)), "cut": int(m.group(5))}
+        if m.group(6):
+            r["emit"].update({"lead_min_ms": float(m.group(6)), "lead_median_ms": float(m.group(7))})
+    return r
+
+
+def evaluate(locus, metric, scene_dir, est, json_out):
+    """`locus eval --metric M`: (printed table, summary dict)."""
+    r = subprocess.run([locus, "eval", scene_dir, est, "--metric", metric], capture_output=True, text=True)
+    if r.returncode not in (0, 4):
+        raise Failure(f"locus eval {scene_dir} {est} --metric {metric} failed ({r.returncode}): {r.stderr}")
+    subprocess.run([locus, "eval", scene_dir, est, "--metric", metric, "--json", "--json-output", json_out],
+                   capture_output=True, text=True)
+    with open(json_out) as f:
+        plugin = next((p for p in json.load(f)["plugins"] if p.get("metric") == metric), None)
+    if plugin is None:  # nothing to score: no estimate at all
+        return r.stdout + r.stderr, {"estimates": 0, "targets_located": 0}
+    return r.stdout, plugin["summary"]
+
+
+def sync_pairs(nodes_out, ids):
+    """Each sync message's arrival (CLOCK_MONOTONIC) at every node, matched by sender and order: the
+    radio_sync events of each node's output (audio timeline) + its audio origin."""
+    arrivals = {}  # (node, source) -> [monotonic s]
+    for ident, (path, origin) in nodes_out.items():
+        if origin is None:
+            continue
+        for e in read_jsonl(path):
+            if e.get("type") == "radio_sync":
+                arrivals.setdefault((ident, e["source"]), []).append(origin + e["t_s"])
+    return arrivals
+
+
+def hil_sync(args, bin_dir, out, run):
+    from map_measure import cpu_s  # tools/scripts (hil_common puts it on the path)
+    locus, locusd = os.path.join(bin_dir, "locus"), os.path.join(bin_dir, "locusd")
+    for d in ("logs", "nodes"):
+        os.makedirs(os.path.join(out, d), exist_ok=True)
+    fam = args.name
+    what = f"--scene {args.scene}" if args.scene else f"locus simulate {fam} --seed {args.seed}" + \
+        (f" --duration {args.duration:g}" if args.duration else "")
+    print(f"== 1/5 layout: {what}", flush=True)
+    layout, scene = layout_for(args, locus, out)
+    devs = {d["id"]: d for d in scene.get("devices") or []}
+    plan = {}  # ident -> (role, extra)
+    if fam == "spyloc":
+        walkers, beacons, periods = plan_spyloc(scene, layout)
+        for i, b in enumerate(beacons):  # staggered as the simulator's beacons
+            plan[b] = ("beacon", {"period_s": round(periods[b], 6), "first_s": round(args.sync_first + i * periods[b] / len(beacons), 6)})
+        for w in walkers:
+            plan[w] = ("walker", {"sync_params": {"sources": ",".join(beacons)}})
+        reporter = walkers[0]
+        print(f"   walker {', '.join(walkers)}; beacons {', '.join(f'{b} (sync every {periods[b]:g} s)' for b in beacons)}",
+              flush=True)
+    else:
+        raise Failure(f"no live HIL for {fam}")
+    duration_s = float(open(os.path.join(layout, "truth.csv")).read().strip().splitlines()[-1].split(",")[0])
+
+    server = f"locus_hil_{os.getpid()}"
+    print(f"== 2/5 jackd -n {server} -d dummy -p {args.period}; mosquitto; locus room (--skew none)", flush=True)
+    env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1", JACK_DEFAULT_SERVER=server)
+    rt = ["-R", "-P", "70"] if args.realtime else ["-r"]
+    jackd = run.start("jackd", ["jackd", "-n", server, *rt, "-S", "-d", "dummy", "-r", "44100", "-p", str(args.period)], env=env)
+    try:
+        wait_for(lambda: subprocess.run(["jack_lsp", "-s", server], capture_output=True, env=env).returncode == 0, 20,
+                 "jackd to answer", [("jackd", jackd)])
+    except Failure as e:
+        if "Too many servers already active" in log_text(out, "jackd"):
+            raise Failure(f"{e}: JACK's server registry is full; `python3 tools/jack/reclaim_registry.py` "
+                          "frees the slots that dead servers still hold (--list shows them)") from None
+        raise
+    mqtt_port, broker = start_mosquitto(run, out)
+    room_out = os.path.join(out, "run")
+    origins_csv = os.path.join(out, "node_origins.csv")
+    room_log = os.path.join(out, "logs", "room.out")
+    room = run.start("room", [locus, "room", layout, room_out, "--server", server, "--skew", "none", "--seed",
+                              str(args.seed), "--lead-in", "2", "--reflections", str(args.reflections),
+                              "--node-origins", origins_csv], env=env, stdout=open(room_log, "w"))
+
+    def room_said(pattern):
+        with open(room_log) as f:
+            return re.search(pattern, f.read())
+    wait_for(lambda: room_said(r"room: \d+ devices of"), 30, "the room's ports and IIO trees", [("room", room)])
+
+    order = [i for i in plan if plan[i][0] != "beacon"] + [i for i in plan if plan[i][0] == "beacon"]
+    print(f"== 3/5 {len(order)} locusd nodes ({', '.join(f'{i}: {plan[i][0]}' for i in order)}), MQTT sync, "
+          f"the layout ({duration_s:.1f} s)", flush=True)
+    nodes, map_url = {}, None
+    events, stop_sse = [], threading.Event()
+    node_out = {}
+    for ident in order:  # listeners first: the beacons' first syncs find them running
+        role, extra = plan[ident]
+        path_out = os.path.join(out, "nodes", ident + ".jsonl")
+        cfg = node_config(args, ident, role, server, mqtt_port, room_out, path_out, devs.get(ident), extra)
+        path = os.path.join(out, "nodes", ident + ".yaml")
+        with open(path, "w") as f:
+            yaml.safe_dump(cfg, f, sort_keys=False)
+        cmd = [locusd, "--config", path, "--layout", layout]
+        if ident == reporter and args.map != "off":
+            p, map_url = start_map_node(run, "node-" + ident, cmd, env, args.map, f"HIL: {fam} live ({what})",
+                                        events, stop_sse, f"{out}/logs/node-{ident}.log")
+        else:
+            p = run.start("node-" + ident, cmd, env=env)
+        nodes[ident] = p
+        node_out[ident] = path_out
+    alive = [("room", room), ("jackd", jackd), ("mosquitto", broker)] + [("locusd " + k, v) for k, v in nodes.items()]
+    wait_for(lambda: room_said(r"layout starts at room time"), 90, "every node to connect to the room", alive)
+    pids = {"jackd": jackd.pid, "mosquitto": broker.pid, "room": room.pid}
+    pids.update({"locusd " + k: v.pid for k, v in nodes.items()})
+    t0 = time.monotonic()
+    cpu0 = {k: cpu_s(p) for k, p in pids.items()}
+    peak_rss = {k: 0.0 for k in pids}
+    end = t0 + 2.0 + duration_s + args.settle  # the lead-in, the layout, a settle for the last estimates
+    while time.monotonic() < end:
+        for k, p in pids.items():
+            try:
+                peak_rss[k] = max(peak_rss[k], rss_mb(p)[0])
+            except (FileNotFoundError, ProcessLookupError):
+                pass
+        for name, p in alive:
+            if p.poll() is not None:
+                raise Failure(f"{name} exited ({p.returncode}) during the layout; see {out}/logs")
+        time.sleep(0.1)
+    wall = time.monotonic() - t0
+    cpu = {k: 100.0 * (cpu_s(p) - cpu0[k]) / wall for k, p in pids.items()}
+
+    print("== 4/5 stop the nodes (final estimates, their logs), the room (the truth), mosquitto, jackd", flush=True)
+    stop_sent_ns = time.monotonic_ns()
+    info = {}
+    for ident in [i for i in order if i != reporter] + [reporter]:
+        rc = run.stop("node-" + ident)
+        if rc != 0:
+            raise Failure(f"locusd {ident} exited with {rc}; see {out}/logs/node-{ident}.log")
+        info[ident] = parse_node_log(log_text(out, "node-" + ident), ident)
+    stop_sse.set()
+    with open(origins_csv, "w") as f:
+        f.write("device,audio_origin_monotonic_s\n")
+        for k, v in info.items():
+            if "origin_s" in v:
+                f.write(f"{k},{v['origin_s']:.9f}\n")
+    if run.stop("room") != 0:
+        raise Failure(f"locus room exited with an error; see {out}/logs/room.log")
+    run.stop("mosquitto")
+    run.stop("jackd")
+    with open(room_log) as f:
+        room_summary = f.read().strip().splitlines()[-1]
+
+    print(f"== 5/5 locus eval --metric {fam}: live, then the same layout replayed", flush=True)
+    est = os.path.join(out, "estimates.jsonl")
+    with open(est, "w") as f:
+        for ident in order:
+            for e in read_jsonl(node_out[ident]):
+                if e.get("type") == "estimate":
+                    f.write(json.dumps(e) + "\n")
+    table, live = evaluate(locus, fam, room_out, est, os.path.join(out, "eval_live.json"))
+    print(table, end="")
+    replay_est = os.path.join(out, "replay.jsonl")
+    r = subprocess.run([locus, "replay", layout, "-c", os.path.join(ROOT, "config", fam + ".yaml"), "--speed", "max",
+                        "-o", replay_est], capture_output=True, text=True, cwd=ROOT)
+    if r.returncode != 0:
+        raise Failure(f"locus replay {layout} failed ({r.returncode}): {r.stderr}")
+    _, rep = evaluate(locus, fam, layout, replay_est, os.path.join(out, "eval_replay.json"))
+
+    # Sync: what was sent and received, the one-way latency, and per message how much later the walker
+    # received it than the emitter did (what biases a range: c x that difference).
+    arrivals = sync_pairs({k: (node_out[k], info[k].get("origin_s")) for k in order}, order)
+    skew_ms = []
+    if fam == "spyloc":
+        for b in beacons:
+            own = arrivals.get((b, b), [])
+            for w in walkers:
+                other = arrivals.get((w, b), [])
+                for t in other:  # the beacon's own arrival of the same message: the nearest within half a period
+                    near = min(own, key=lambda x: abs(x - t), default=None)
+                    if near is not None and abs(near - t) < periods[b] / 2:
+                        skew_ms.append((t - near) * 1e3)
+    c = float(scene.get("speed_of_sound") or 343.2)
+    range_err = range_errors(out, room_out, node_out, info, walkers, scene, c) if fam == "spyloc" else []
+    on_map = [(now, m["event"]) for now, m in events if m["event"].get("type") == "estimate"]
+    origin = info.get(reporter, {}).get("origin_s")
+    to_map_ms = sorted((now - (origin + e["t_s"]) * 1e9) / 1e6 for now, e in on_map if origin is not None and now < stop_sent_ns)
+    emit = {k: v["emit"] for k, v in info.items() if "emit" in v}
+    sync = {k: v["sync"] for k, v in info.items() if "sync" in v}
+    result = {
+        "localizer": fam, "layout": layout, "seed": None if args.scene else args.seed, "period_frames": args.period,
+        "live": live, "replay": rep, "sync": sync, "emissions": emit,
+        "walker_minus_emitter_arrival_ms": skew_ms, "range_error_m": range_err,
+        "estimate_to_map_ms": to_map_ms, "cpu_pct_of_one_core": cpu, "peak_rss_mb": peak_rss, "wall_s": wall,
+        "nodes": info, "room": room_summary, "map_url": map_url, "out": out,
+    }
+    key = "mean_error_m" if fam == "spyloc" else "trace_mean_error_m"
+    print(f"live vs replay ({fam}, same layout): located {live.get('targets_located')}/{live.get('targets_expected')} "
+          f"vs {rep.get('targets_located')}/{rep.get('targets_expected')}; mean error {fmt(live.get(key))} vs "
+          f"{fmt(rep.get(key))} m; median {fmt(live.get('median_error_m'))} vs {fmt(rep.get('median_error_m'))} m; "
+          f"p90 {fmt(live.get('p90_error_m'))} vs {fmt(rep.get('p90_error_m'))} m; estimates "
+          f"{live.get('estimates')} vs {rep.get('estimates')}")
+    sent = sum(v["sent"] for v in sync.values())
+    print(f"sync over MQTT: {sent} sent; received " + ", ".join(f"{k} {v['received']}" for k, v in sync.items()) +
+          "; one-way latency median (max) " + ", ".join(f"{k} {v.get('latency_median_ms', float('nan')):.2f} "
+                                                        f"({v.get('latency_max_ms', float('nan')):.2f}) ms" for k, v in sync.items()))
+    if skew_ms:
+        med = statistics.median(skew_ms)
+        print(f"walker's arrival - emitter's own arrival of the same sync: median {med:.3f} ms, "
+              f"range {min(skew_ms):.3f}..{max(skew_ms):.3f} ms over {len(skew_ms)} syncs = a range bias of "
+              f"c x that: median {c * med / 1e3:+.3f} m ({c * min(skew_ms) / 1e3:+.3f}..{c * max(skew_ms) / 1e3:+.3f} m), "
+              "uncompensated")
+    if range_err:
+        print(f"live ranges (beep - sync arrival - sync_delay_s, x c) - the room's true distance: median "
+              f"{statistics.median(range_err):+.3f} m, p10..p90 {pct(range_err, 10):+.3f}..{pct(range_err, 90):+.3f} m over "
+              f"{len(range_err)} beeps (the room's converter delay of {ROOM_DELAY_SAMPLES} samples is "
+              f"{c * ROOM_DELAY_SAMPLES / 44100:+.3f} m of it; a deployment calibrates it into sync_delay_s)")
+    print("emissions: " + ", ".join(f"{k} {v['scheduled']} scheduled / {v['late']} late / {v['cut']} cut "
+                                    f"(lead min {v.get('lead_min_ms', float('nan')):.1f} ms)" for k, v in emit.items()))
+    if to_map_ms:
+        print(f"latency, estimate's data time -> the map: {len(to_map_ms)} estimates, median "
+              f"{statistics.median(to_map_ms):.0f} ms, max {max(to_map_ms):.0f} ms")
+    else:
+        print("latency: no estimate reached the map")
+    print(f"CPU (% of one core over {wall:.1f} s) and peak RSS: " +
+          ", ".join(f"{k} {cpu[k]:.1f} % {peak_rss[k]:.0f} MB" for k in pids))
+    xr = sum(v.get("playback_xruns", 0) for v in info.values())
+    print(f"xruns: nodes' playback {xr} in all; {room_summary}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(result, f, indent=1)
+    return result
+
+
+# The room's interpolator keeps every tap in the past: a microphone hears the air kTaps/2 + 2 samples
+# before its frame (tools/room/renderer.cpp, RoomRenderer's offset_s with --skew none), a fixed "ADC
+# latency" that every range to a beep carries.
+ROOM_DELAY_SAMPLES = 34
+
+
+def pct(v, q):
+    v = sorted(v)
+    return v[min(len(v) - 1, int(len(v) * q / 100))]
+
+
+def range_errors(out, room_out, node_out, info, walkers, scene, c):
+    """Per beep a walker detected: its range as SpyLoc forms it from the live sync (c x (beep - latest sync
+    of that beacon - sync_delay_s)) minus the room's true distance at the beep's direct arrival."""
+    with open(os.path.join(room_out, "scene.yaml")) as f:
+        origin_room = float(yaml.safe_load(f)["environment"]["room_origin_monotonic_s"])
+    delays = {e["id"]: float(x["sync_delay_s"]) for e in scene.get("emitters") or [] for x in e.get("emits") or []
+              if x.get("sync_delay_s") is not None}
+    with open(os.path.join(room_out, "room_arrivals.csv")) as f:
+        arrivals = list(csv.DictReader(f))
+    errs = []
+    for w in walkers:
+        p0 = info.get(w, {}).get("origin_s")
+        if p0 is None:
+            continue
+        ev = read_jsonl(node_out[w])
+        syncs = [e for e in ev if e.get("type") == "radio_sync"]
+        mine = [(float(a["t_arrival"]), a["source"], float(a["distance_m"])) for a in arrivals if a["receiver"] == w]
+        for d in (e for e in ev if e.get("type") == "audio_detection"):
+            t_room = d["t_s"] + p0 - origin_room  # local (audio timeline) -> room time
+            near = min(mine, key=lambda a: abs(a[0] - t_room), default=None)
+            if near is None or abs(near[0] - t_room) > 0.005 or near[1] not in delays:
+                continue
+            prev = [s["t_s"] for s in syncs if s["source"] == near[1] and s["t_s"] < d["t_s"]]
+            if prev:
+                errs.append(c * (d["t_s"] - prev[-1] - delays[near[1]]) - near[2])
+    return errs
+
+
+def fmt(v):
+    return "-" if v is None else f"{v:.3f}"
