@@ -327,7 +327,8 @@ def main():
     ap.add_argument("--period", type=int, default=None,
                     help="JACK period (frames; amil 1024, spyloc 256: a beacon's beep is due 50-75 ms after its sync, "
                          "which must cross the link, one period and the node's pipeline first)")
-    ap.add_argument("--reflections", type=int, default=0, choices=[0, 1], help="the room's image-source order")
+    ap.add_argument("--reflections", type=int, default=None, choices=[0, 1],
+                    help="the room's image-source order (amil 0; spyloc 1: its LoS/NLoS classifier reads the decay)")
     ap.add_argument("--self-gain", type=float, default=0.2,
                     help="the player's own speaker into its own microphone (the room's --self-gain)")
     ap.add_argument("--map", default="127.0.0.1:0", help="the player's live map ([HOST:]PORT, or off)")
@@ -362,6 +363,8 @@ def main():
         return 2
     if args.period is None:
         args.period = 1024 if args.name == "amil" else 256
+    if args.reflections is None:
+        args.reflections = 0 if args.name == "amil" else 1
     if args.settle is None:
         args.settle = 1.0 if args.name == "locble" else 3.0
     if args.name in ("amil",) + hil_sync.FAMILIES:
