@@ -51,7 +51,7 @@ import hil_sync  # noqa: E402
 
 import yaml  # noqa: E402
 
-LIVE = {"amil", "locble", "spyloc"}  # localizers with a live HIL run (locble: hil_locble.py; spyloc: hil_sync.py)
+LIVE = {"amil", "locble", "spyloc", "montage"}  # localizers with a live HIL run (locble: hil_locble.py; spyloc, montage: hil_sync.py)
 
 
 def layout_for(args, bin_dir, out):

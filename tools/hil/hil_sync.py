@@ -92,6 +92,60 @@ def plan_spyloc(scene, layout):
     return walkers, beacons, periods
 
 
+# Montage's rounds: the first emission this long after the start signal's arrival. The simulator's
+# protocol commands the first round 20 ms after the start signal and each phone's speaker adds 20-150 ms
+# of latency (the foreign world 5-50 ms): 0.1 s lies inside those 0.025-0.17 s and leaves the node's
+# pipeline (one period, the detector thread, the dispatcher: ~7 ms at 256 frames) time to schedule it.
+MONTAGE_DELAY_S = 0.1
+
+
+def plan_montage(scene, layout):
+    """Users (devices with a gold code, mics and a speaker), the start signal's sender (sync.csv's source,
+    a user; else the first user), the round period (truth-extra.yaml period_s, else the command period of
+    truth_emissions.csv, else 1 s) and the layout time of the start signal."""
+    users = [d["id"] for d in scene.get("devices") or []
+             if d.get("mics") and d.get("speaker") and any(x.get("type") == "gold" for x in d.get("emits") or [])]
+    if len(users) < 2:
+        raise Failure(f"{layout}/scene.yaml: not a Montage scene (expected >= 2 devices with mics, a speaker and a "
+                      f"gold code; found {len(users)})")
+    syncs = read_syncs(layout, scene)
+    sources = [s for rows in syncs.values() for _, s in rows]
+    start = sources[0] if sources and sources[0] in users else users[0]
+    period = None
+    extra = os.path.join(layout, "truth-extra.yaml")
+    if os.path.exists(extra):
+        with open(extra) as f:
+            period = (yaml.safe_load(f) or {}).get("period_s")
+    env = scene.get("environment") or {}
+    if period is None and env.get("truth_emissions"):
+        with open(os.path.join(layout, env["truth_emissions"])) as f:
+            rows = list(csv.DictReader(f))
+        t = sorted({float(r["t_command"]) for r in rows if r["id"] == users[0]})
+        gaps = [b - a for a, b in zip(t, t[1:])]
+        period = statistics.median(gaps) if gaps else None
+    period = float(period or 1.0)
+    # the start signal's true time: its arrival at the start user (local -> true with that clock)
+    clock = ((scene.get("truth") or {}).get("clocks") or {}).get(start) or {}
+    local = next((t for t, s in syncs.get(start, []) if s == start), None)
+    t_sync = None
+    if local is not None:
+        t_sync = (local - float(clock.get("offset_s", 0.0))) / (1.0 + float(clock.get("skew_ppm", 0.0)) * 1e-6)
+    return users, start, period, t_sync
+
+
+def self_gain_for(scene, level_at_1m=0.1):
+    """The room's --self-gain that puts a user's own code at half full scale in its microphone, as the
+    simulator sets a phone's input level (the loudest user decides; 1 when no device has both)."""
+    g = 1.0
+    for d in scene.get("devices") or []:
+        if not d.get("mics") or not d.get("speaker"):
+            continue
+        amp = max([float(x.get("amplitude", 1.0)) for x in d.get("emits") or [] if x.get("type") == "gold"] or [1.0])
+        r = max(1e-3, min(sum((a - b) ** 2 for a, b in zip(m, d["speaker"])) ** 0.5 for m in d["mics"]))
+        g = min(g, 0.5 * r / (level_at_1m * amp))
+    return g
+
+
 def jack_audio(server, ident, channels, connect):
     return {"source": "jack", "params": {"server": server, "client_name": ident, "channels": channels, "connect": connect}}
 
@@ -119,7 +173,7 @@ def node_config(args, ident, role, server, mqtt_port, room_out, out_jsonl, dev, 
     base = {
         "log_level": "info",
         "sample_rate_hz": 44100,
-        "output": {"path": out_jsonl, "events": ["estimate", "radio_sync"] + (["audio_detection"] if role != "beacon" else [])},
+        "output": {"path": out_jsonl, "events": ["estimate", "radio_sync"] + (["audio_detection", "step"] if role != "beacon" else [])},
         "link": {"type": "mqtt", "params": {"host": "127.0.0.1", "port": mqtt_port, "connect_timeout_s": 10}},
     }
     device = {"id": ident}
@@ -229,7 +283,25 @@ def hil_sync(args, bin_dir, out, run):
         print(f"   walker {', '.join(walkers)}; beacons {', '.join(f'{b} (sync every {periods[b]:g} s)' for b in beacons)}",
               flush=True)
     else:
-        raise Failure(f"no live HIL for {fam}")
+        users, start, period, t_sync = plan_montage(scene, layout)
+        t_begin = float(open(os.path.join(layout, "truth.csv")).read().splitlines()[1].split(",")[0])
+        duration_all = float(open(os.path.join(layout, "truth.csv")).read().strip().splitlines()[-1].split(",")[0])
+        # the start signal at its layout time: the room starts the layout 2 s after the last node (the
+        # start user, started last) connects
+        first_s = 2.0 + max(0.0, (t_sync if t_sync is not None else t_begin + 1.0) - t_begin)
+        rounds = max(1, min(48, int((duration_all - t_begin - (first_s - 2.0) - MONTAGE_DELAY_S) / period)))
+        emit = {"plugin": "sync_emitter", "params": {"sources": start, "delay_s": MONTAGE_DELAY_S,
+                                                     "repeat_period_s": period, "repeat_count": rounds}}
+        for u in users:
+            sp = {"sources": start}
+            if u == start:
+                sp.update({"send_period_s": 1.0, "send_count": 1, "send_first_s": round(first_s, 3)})
+            plan[u] = ("montage", {"sync_params": sp, "localizers": [emit]})
+        plan = {u: plan[u] for u in [x for x in users if x != start] + [start]}  # the start user last
+        reporter = users[-1]  # config/montage.yaml's reporter: the last user
+        walkers = users
+        print(f"   users {', '.join(users)}; start signal from {start} {first_s:.2f} s after its node starts; "
+              f"{rounds} rounds every {period:g} s from {MONTAGE_DELAY_S} s after it", flush=True)
     duration_s = float(open(os.path.join(layout, "truth.csv")).read().strip().splitlines()[-1].split(",")[0])
 
     server = f"locus_hil_{os.getpid()}"
@@ -249,8 +321,11 @@ def hil_sync(args, bin_dir, out, run):
     room_out = os.path.join(out, "run")
     origins_csv = os.path.join(out, "node_origins.csv")
     room_log = os.path.join(out, "logs", "room.out")
+    env_scene = scene.get("environment") or {}
+    reflections = args.reflections if env_scene.get("room") else 0  # outdoors (no room): free field
     room = run.start("room", [locus, "room", layout, room_out, "--server", server, "--skew", "none", "--seed",
-                              str(args.seed), "--lead-in", "2", "--reflections", str(args.reflections),
+                              str(args.seed), "--lead-in", "2", "--reflections", str(reflections),
+                              "--self-gain", f"{self_gain_for(scene) if fam == 'montage' else 1.0:.6g}",
                               "--node-origins", origins_csv], env=env, stdout=open(room_log, "w"))
 
     def room_said(pattern):
@@ -322,11 +397,12 @@ def hil_sync(args, bin_dir, out, run):
         room_summary = f.read().strip().splitlines()[-1]
 
     print(f"== 5/5 locus eval --metric {fam}: live, then the same layout replayed", flush=True)
+    shift_truth_steps(layout, scene, room_out)
     est = os.path.join(out, "estimates.jsonl")
     with open(est, "w") as f:
         for ident in order:
             for e in read_jsonl(node_out[ident]):
-                if e.get("type") == "estimate":
+                if e.get("type") in ("estimate", "step"):
                     f.write(json.dumps(e) + "\n")
     table, live = evaluate(locus, fam, room_out, est, os.path.join(out, "eval_live.json"))
     print(table, end="")
@@ -364,7 +440,7 @@ def hil_sync(args, bin_dir, out, run):
         "estimate_to_map_ms": to_map_ms, "cpu_pct_of_one_core": cpu, "peak_rss_mb": peak_rss, "wall_s": wall,
         "nodes": info, "room": room_summary, "map_url": map_url, "out": out,
     }
-    key = "mean_error_m" if fam == "spyloc" else "trace_mean_error_m"
+    key = "mean_error_m"
     print(f"live vs replay ({fam}, same layout): located {live.get('targets_located')}/{live.get('targets_expected')} "
           f"vs {rep.get('targets_located')}/{rep.get('targets_expected')}; mean error {fmt(live.get(key))} vs "
           f"{fmt(rep.get(key))} m; median {fmt(live.get('median_error_m'))} vs {fmt(rep.get('median_error_m'))} m; "
@@ -439,6 +515,27 @@ def range_errors(out, room_out, node_out, info, walkers, scene, c):
             if prev:
                 errs.append(c * (d["t_s"] - prev[-1] - delays[near[1]]) - near[2])
     return errs
+
+
+def shift_truth_steps(layout, scene, room_out):
+    """The layout's truth_steps.csv (heel strikes on layout time) on the run's time (the room plays
+    layout time t at room time room_layout_start_s + t), so `locus eval` scores the live strides too.
+    The room eases a walk in over its first second: steps in it are the layout's, not quite the room's."""
+    name = (scene.get("environment") or {}).get("truth_steps")
+    if not name or not os.path.exists(os.path.join(layout, name)):
+        return
+    with open(os.path.join(room_out, "scene.yaml")) as f:
+        start = float(yaml.safe_load(f)["environment"]["room_layout_start_s"])
+    if start < 0:
+        return
+    with open(os.path.join(layout, name)) as f:
+        rows = list(csv.DictReader(f))
+    with open(os.path.join(room_out, name), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()) if rows else ["t_true", "id", "stride_m", "frequency_hz"])
+        w.writeheader()
+        for r in rows:
+            r["t_true"] = repr(float(r["t_true"]) + start)
+            w.writerow(r)
 
 
 def fmt(v):

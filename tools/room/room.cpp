@@ -415,6 +415,7 @@ void write_truth(const RoomOptions& opts, const Layout& layout, const RoomRender
   env["room_layout_start_s"] = started ? start : -1.0;
   env["room_emissions"] = "room_emissions.csv";
   env["room_arrivals"] = "room_arrivals.csv";
+  env["room_imu"] = opts.imu;  // every device had a fake IIO IMU (locus eval: a walker's IMU stayed on its node)
   env["room_jack_xruns"] = jack.xruns();
   env["room_skipped_frames"] = jack.skipped_frames();
   YAML::Emitter em;
