@@ -343,6 +343,9 @@ def main():
                     help="seconds the nodes run on after the scene's end before they are stopped (their final updates; "
                          "locble 1, spyloc 3)")
     ap.add_argument("--duration", type=float, help="spyloc: the simulated layout's length (s; default the family's)")
+    ap.add_argument("--calibrate-room-delay", action="store_true",
+                    help="spyloc: tell the walker every beacon's sync_delay_s plus the room's converter delay (34 "
+                         "samples, +0.26 m on every range), as a deployment calibrates its beacons; default: uncalibrated")
     ap.add_argument("--sync-first", type=float, default=1.0,
                     help="spyloc: the first beacon's first sync this long after its node starts (the others staggered)")
     args = ap.parse_args()

@@ -334,6 +334,11 @@ def hil_sync(args, bin_dir, out, run):
     wait_for(lambda: room_said(r"room: \d+ devices of"), 30, "the room's ports and IIO trees", [("room", room)])
 
     order = [i for i in plan if plan[i][0] != "beacon"] + [i for i in plan if plan[i][0] == "beacon"]
+    walker_layout = layout
+    if fam == "spyloc" and args.calibrate_room_delay:
+        walker_layout = calibrated_layout(layout, scene, os.path.join(out, "walker_layout"), ROOM_DELAY_SAMPLES / 44100.0)
+        print(f"   the walker's layout: every sync_delay_s + {ROOM_DELAY_SAMPLES} samples (the room's converter delay, "
+              "calibrated as a deployment calibrates its beacons')", flush=True)
     print(f"== 3/5 {len(order)} locusd nodes ({', '.join(f'{i}: {plan[i][0]}' for i in order)}), MQTT sync, "
           f"the layout ({duration_s:.1f} s)", flush=True)
     nodes, map_url = {}, None
@@ -346,7 +351,7 @@ def hil_sync(args, bin_dir, out, run):
         path = os.path.join(out, "nodes", ident + ".yaml")
         with open(path, "w") as f:
             yaml.safe_dump(cfg, f, sort_keys=False)
-        cmd = [locusd, "--config", path, "--layout", layout]
+        cmd = [locusd, "--config", path, "--layout", walker_layout if role == "walker" else layout]
         if ident == reporter and args.map != "off":
             p, map_url = start_map_node(run, "node-" + ident, cmd, env, args.map, f"HIL: {fam} live ({what})",
                                         events, stop_sse, f"{out}/logs/node-{ident}.log")
@@ -428,6 +433,7 @@ def hil_sync(args, bin_dir, out, run):
                         skew_ms.append((t - near) * 1e3)
     c = float(scene.get("speed_of_sound") or 343.2)
     range_err = range_errors(out, room_out, node_out, info, walkers, scene, c) if fam == "spyloc" else []
+    detection = code_detections(room_out, node_out, info, walkers, scene) if fam == "montage" else None
     on_map = [(now, m["event"]) for now, m in events if m["event"].get("type") == "estimate"]
     origin = info.get(reporter, {}).get("origin_s")
     to_map_ms = sorted((now - (origin + e["t_s"]) * 1e9) / 1e6 for now, e in on_map if origin is not None and now < stop_sent_ns)
@@ -436,7 +442,7 @@ def hil_sync(args, bin_dir, out, run):
     result = {
         "localizer": fam, "layout": layout, "seed": None if args.scene else args.seed, "period_frames": args.period,
         "live": live, "replay": rep, "sync": sync, "emissions": emit,
-        "walker_minus_emitter_arrival_ms": skew_ms, "range_error_m": range_err,
+        "walker_minus_emitter_arrival_ms": skew_ms, "range_error_m": range_err, "detection": detection,
         "estimate_to_map_ms": to_map_ms, "cpu_pct_of_one_core": cpu, "peak_rss_mb": peak_rss, "wall_s": wall,
         "nodes": info, "room": room_summary, "map_url": map_url, "out": out,
     }
@@ -461,6 +467,11 @@ def hil_sync(args, bin_dir, out, run):
               f"{statistics.median(range_err):+.3f} m, p10..p90 {pct(range_err, 10):+.3f}..{pct(range_err, 90):+.3f} m over "
               f"{len(range_err)} beeps (the room's converter delay of {ROOM_DELAY_SAMPLES} samples is "
               f"{c * ROOM_DELAY_SAMPLES / 44100:+.3f} m of it; a deployment calibrates it into sync_delay_s)")
+    if detection:
+        print(f"other users' codes: {detection['within_3']} of {detection['pair_rounds']} pair-rounds detected within 3 "
+              f"samples of the room's direct arrival ({detection['detections']} detections, {detection['wrong']} further off; "
+              f"own code's offset {detection['own_offset_samples']:+.1f} samples: the room's converter delay and the "
+              "detector's, the same for every code)")
     print("emissions: " + ", ".join(f"{k} {v['scheduled']} scheduled / {v['late']} late / {v['cut']} cut "
                                     f"(lead min {v.get('lead_min_ms', float('nan')):.1f} ms)" for k, v in emit.items()))
     if to_map_ms:
@@ -482,6 +493,24 @@ def hil_sync(args, bin_dir, out, run):
 # before its frame (tools/room/renderer.cpp, RoomRenderer's offset_s with --skew none), a fixed "ADC
 # latency" that every range to a beep carries.
 ROOM_DELAY_SAMPLES = 34
+
+
+def calibrated_layout(layout, scene, dest, extra_s):
+    """A copy of the layout (its files linked) whose beacons' sync_delay_s include `extra_s`: what the
+    walker is told, as a deployment calibrates a beacon's delay (speaker and ADC latency included)."""
+    shutil.rmtree(dest, ignore_errors=True)
+    os.makedirs(dest)
+    for name in os.listdir(layout):
+        if name != "scene.yaml":
+            os.symlink(os.path.join(layout, name), os.path.join(dest, name))
+    sc = json.loads(json.dumps(scene))
+    for e in sc.get("emitters") or []:
+        for x in e.get("emits") or []:
+            if x.get("sync_delay_s") is not None:
+                x["sync_delay_s"] = float(x["sync_delay_s"]) + extra_s
+    with open(os.path.join(dest, "scene.yaml"), "w") as f:
+        yaml.safe_dump(sc, f, sort_keys=False)
+    return dest
 
 
 def pct(v, q):
@@ -515,6 +544,55 @@ def range_errors(out, room_out, node_out, info, walkers, scene, c):
             if prev:
                 errs.append(c * (d["t_s"] - prev[-1] - delays[near[1]]) - near[2])
     return errs
+
+
+def code_detections(room_out, node_out, info, users, scene):
+    """Montage: each walker's detections of the other users' codes against the room's direct arrivals.
+    A detection's offset from its nearest arrival of that code, less the median offset of the walker's
+    own code (the room's converter delay plus the detector's fixed bias, common to every code and
+    cancelled by ETOA), within 3 samples counts. Out of every (emission, other walker) pair."""
+    with open(os.path.join(room_out, "scene.yaml")) as f:
+        origin_room = float(yaml.safe_load(f)["environment"]["room_origin_monotonic_s"])
+    codes = {}  # template index (the goldcode detector's order: the scene's gold emitters) -> user
+    for d in scene.get("devices") or []:
+        if any(x.get("type") == "gold" for x in d.get("emits") or []):
+            codes[len(codes)] = d["id"]
+    with open(os.path.join(room_out, "room_arrivals.csv")) as f:
+        arrivals = list(csv.DictReader(f))
+    with open(os.path.join(room_out, "room_emissions.csv")) as f:
+        emissions = [r["id"] for r in csv.DictReader(f)]
+    fs = 44100.0
+    within = wrong = total = 0
+    own_offsets = []
+    for w in users:
+        p0 = info.get(w, {}).get("origin_s")
+        if p0 is None:
+            continue
+        by_src = {}
+        for a in arrivals:
+            if a["receiver"] == w:
+                by_src.setdefault(a["source"], []).append(float(a["t_arrival"]))
+        offs = {}
+        for e in read_jsonl(node_out[w]):
+            if e.get("type") != "audio_detection" or e.get("template") not in codes:
+                continue
+            src = codes[e["template"]]
+            t_room = e["frame"] / fs + p0 - origin_room
+            near = min(by_src.get(src, []), key=lambda x: abs(x - t_room), default=None)
+            if near is not None:
+                offs.setdefault(src, []).append((t_room - near) * fs)
+        own = statistics.median(offs[w]) if offs.get(w) else 0.0
+        own_offsets.append(own)
+        for src, v in offs.items():
+            if src == w:
+                continue
+            total += len(v)
+            ok = sum(1 for x in v if abs(x - own) <= 3.0)
+            within += ok
+            wrong += len(v) - ok
+    pair_rounds = sum(1 for e in emissions if e in users) * (len(users) - 1)
+    return {"within_3": within, "wrong": wrong, "detections": total, "pair_rounds": pair_rounds,
+            "own_offset_samples": statistics.median(own_offsets) if own_offsets else float("nan")}
 
 
 def shift_truth_steps(layout, scene, room_out):
