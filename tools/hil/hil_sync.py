@@ -344,8 +344,12 @@ def hil_sync(args, bin_dir, out, run):
     nodes, map_url = {}, None
     events, stop_sse = [], threading.Event()
     node_out = {}
+    senders = {i for i in order if plan[i][1].get("sync_params", plan[i][1]).get("send_period_s") or plan[i][0] == "beacon"}
     for ident in order:  # listeners first: the beacons' first syncs find them running
         role, extra = plan[ident]
+        if ident in senders:  # a sender's first sync must find every listener's link sync source started
+            wait_for(lambda: all("running " in log_text(out, "node-" + k) for k in nodes), 90,
+                     "the listening nodes to start", [("locusd " + k, v) for k, v in nodes.items()])
         path_out = os.path.join(out, "nodes", ident + ".jsonl")
         cfg = node_config(args, ident, role, server, mqtt_port, room_out, path_out, devs.get(ident), extra)
         path = os.path.join(out, "nodes", ident + ".yaml")
