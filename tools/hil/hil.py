@@ -1,8 +1,9 @@
 #!/usr/bin/python3
 """Hardware-in-the-loop run of a localizer (`./run hil NAME`, docs/room.md): live nodes in a virtual room.
 
-`locble` is hil_locble.py (BlueZ through dbusmock and a fake IIO IMU, played by `locus feed`); the process
-runner and the other pieces both runs use are hil_common.py. This file: the command line and `amil`.
+`locble` is hil_locble.py (BlueZ through dbusmock and a fake IIO IMU, played by `locus feed`); `spyloc` and
+`montage` are hil_sync.py (emitters scheduled from a radio sync over MQTT); the process runner and the other
+pieces the runs share are hil_common.py. This file: the command line and `amil`.
 
 For `amil`: simulates the layout (`locus simulate amil`: the player's triangle gesture and 12 listeners;
 the live protocol: the player pauses 0.8-1.0 s at each corner, long enough for its beep), then starts
@@ -44,7 +45,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, os.path.join(ROOT, "tools", "scripts"))
 sys.path.insert(0, HERE)
-from hil_common import Failure, Run, read_jsonl, rss_mb, start_map_node, start_mosquitto, wait_for  # noqa: E402
+from hil_common import Failure, Run, read_jsonl, rss_mb, start_jackd, start_map_node, start_mosquitto, wait_for  # noqa: E402
 from map_measure import cpu_s  # noqa: E402
 import hil_locble  # noqa: E402
 import hil_sync  # noqa: E402
@@ -128,18 +129,7 @@ def hil_amil(args, bin_dir, out, run):
 
     server = f"locus_hil_{os.getpid()}"
     print(f"== 2/5 jackd -n {server} -d dummy -p {args.period}; mosquitto; locus room", flush=True)
-    env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1", JACK_DEFAULT_SERVER=server)
-    rt = ["-R", "-P", "70"] if args.realtime else ["-r"]
-    jackd = run.start("jackd", ["jackd", "-n", server, *rt, "-S", "-d", "dummy", "-r", "44100", "-p", str(args.period)], env=env)
-    try:
-        wait_for(lambda: subprocess.run(["jack_lsp", "-s", server], capture_output=True, env=env).returncode == 0, 20,
-                 "jackd to answer", [("jackd", jackd)])
-    except Failure as e:
-        with open(os.path.join(out, "logs", "jackd.log"), errors="replace") as f:
-            if "Too many servers already active" in f.read():  # JACK's registry: 8 slots, dead servers keep theirs
-                raise Failure(f"{e}: JACK's server registry is full; `python3 tools/jack/reclaim_registry.py` "
-                              "frees the slots that dead servers still hold (--list shows them)") from None
-        raise
+    jackd, env = start_jackd(run, out, server, args.period, args.realtime)
     mqtt_port, broker = start_mosquitto(run, out)
 
     room_out = os.path.join(out, "run")

@@ -127,3 +127,42 @@ def start_map_node(run, name, cmd, env, listen, title, events, stop_sse, log_hin
     threading.Thread(target=sse_client, args=(host, int(port), [], stop_sse, lambda m, now: events.append((now, m))),
                      daemon=True).start()
     return p, url
+
+
+def family_layout(locus, family, out, seed, scene_dir=None, extra=()):
+    """The layout of a run: `scene_dir` as given (any scene of the family), else `locus simulate FAMILY
+    OUT/layout --seed SEED EXTRA...`; (its directory, scene.yaml as a dict)."""
+    if scene_dir:
+        layout = os.path.abspath(scene_dir)
+    else:
+        layout = os.path.join(out, "layout")
+        cmd = [locus, "simulate", family, layout, "--seed", str(seed), "-q", *extra]
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        if r.returncode != 0:
+            raise Failure(f"{' '.join(cmd)} failed: {r.stderr}")
+    path = os.path.join(layout, "scene.yaml")
+    import yaml
+    try:
+        with open(path) as f:
+            return layout, yaml.safe_load(f)
+    except (OSError, yaml.YAMLError) as e:
+        raise Failure(f"--scene: cannot read {path}: {e}")
+
+
+def start_jackd(run, out, server, period, realtime):
+    """jackd (dummy driver, 44.1 kHz, synchronous, one period of `period` frames, SCHED_FIFO process
+    threads when `realtime` and the user may) as server `server`, answering when this returns; (process,
+    the environment its clients use). A full JACK server registry is named with the command that frees it."""
+    env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1", JACK_DEFAULT_SERVER=server)
+    rt = ["-R", "-P", "70"] if realtime else ["-r"]
+    jackd = run.start("jackd", ["jackd", "-n", server, *rt, "-S", "-d", "dummy", "-r", "44100", "-p", str(period)], env=env)
+    try:
+        wait_for(lambda: subprocess.run(["jack_lsp", "-s", server], capture_output=True, env=env).returncode == 0, 20,
+                 "jackd to answer", [("jackd", jackd)])
+    except Failure as e:
+        with open(os.path.join(out, "logs", "jackd.log"), errors="replace") as f:
+            if "Too many servers already active" in f.read():  # JACK's registry: 8 slots, dead servers keep theirs
+                raise Failure(f"{e}: JACK's server registry is full; `python3 tools/jack/reclaim_registry.py` "
+                              "frees the slots that dead servers still hold (--list shows them)") from None
+        raise
+    return jackd, env

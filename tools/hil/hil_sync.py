@@ -33,7 +33,7 @@ import time
 
 import yaml
 
-from hil_common import Failure, read_jsonl, rss_mb, start_map_node, start_mosquitto, wait_for
+from hil_common import Failure, family_layout, read_jsonl, rss_mb, start_jackd, start_map_node, start_mosquitto, wait_for
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -41,24 +41,9 @@ FAMILIES = ("spyloc", "montage")
 
 
 def layout_for(args, locus, out):
-    """(layout dir, scene dict): --scene DIR as given, else `locus simulate FAMILY --seed N`."""
-    if args.scene:
-        layout = os.path.abspath(args.scene)
-    else:
-        layout = os.path.join(out, "layout")
-        cmd = [locus, "simulate", args.name, layout, "--seed", str(args.seed), "-q"]
-        if args.duration:
-            cmd += ["--duration", str(args.duration)]
-        r = subprocess.run(cmd, capture_output=True, text=True)
-        if r.returncode != 0:
-            raise Failure(f"{' '.join(cmd)} failed: {r.stderr}")
-    path = os.path.join(layout, "scene.yaml")
-    try:
-        with open(path) as f:
-            scene = yaml.safe_load(f)
-    except (OSError, yaml.YAMLError) as e:
-        raise Failure(f"--scene: cannot read {path}: {e}")
-    return layout, scene
+    """(layout dir, scene dict): --scene DIR as given, else `locus simulate FAMILY --seed N [--duration S]`."""
+    return family_layout(locus, args.name, out, args.seed, args.scene,
+                         ["--duration", str(args.duration)] if args.duration else [])
 
 
 def read_syncs(layout, scene):
@@ -306,17 +291,7 @@ def hil_sync(args, bin_dir, out, run):
 
     server = f"locus_hil_{os.getpid()}"
     print(f"== 2/5 jackd -n {server} -d dummy -p {args.period}; mosquitto; locus room (--skew none)", flush=True)
-    env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1", JACK_DEFAULT_SERVER=server)
-    rt = ["-R", "-P", "70"] if args.realtime else ["-r"]
-    jackd = run.start("jackd", ["jackd", "-n", server, *rt, "-S", "-d", "dummy", "-r", "44100", "-p", str(args.period)], env=env)
-    try:
-        wait_for(lambda: subprocess.run(["jack_lsp", "-s", server], capture_output=True, env=env).returncode == 0, 20,
-                 "jackd to answer", [("jackd", jackd)])
-    except Failure as e:
-        if "Too many servers already active" in log_text(out, "jackd"):
-            raise Failure(f"{e}: JACK's server registry is full; `python3 tools/jack/reclaim_registry.py` "
-                          "frees the slots that dead servers still hold (--list shows them)") from None
-        raise
+    jackd, env = start_jackd(run, out, server, args.period, args.realtime)
     mqtt_port, broker = start_mosquitto(run, out)
     room_out = os.path.join(out, "run")
     origins_csv = os.path.join(out, "node_origins.csv")

@@ -10,28 +10,7 @@
 namespace locus::plugins::sync_emitter {
 namespace {
 
-class FakeEmitter final : public Emitter {
- public:
-  struct Call {
-    SignalSpec signal;
-    std::uint64_t start_frame;
-    double gain;
-  };
-  bool schedule(const SignalSpec& signal, std::uint64_t start_frame, double gain, std::string* error) override {
-    if (refuse) {
-      if (error) *error = "too many emissions pending";
-      return false;
-    }
-    calls.push_back({signal, start_frame, gain});
-    return true;
-  }
-  std::uint64_t playback_frame() const noexcept override { return frame; }
-  double sample_rate_hz() const noexcept override { return 48000.0; }
-  std::uint64_t late_emissions() const noexcept override { return 0; }
-  std::vector<Call> calls;
-  std::uint64_t frame = 0;
-  bool refuse = false;
-};
+using FakeEmitter = test::RecordingEmitter;  // 48 kHz, frame 0
 
 class NullPublisher final : public Publisher {
  public:
