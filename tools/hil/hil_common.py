@@ -166,3 +166,16 @@ def start_jackd(run, out, server, period, realtime):
                               "frees the slots that dead servers still hold (--list shows them)") from None
         raise
     return jackd, env
+
+
+def watch(pids, peak_rss, alive, during, out):
+    """One look at a running HIL: each process's peak RSS (MB, in `peak_rss` by name) and a Failure naming
+    the first of `alive` ((name, Popen)) that exited `during` what (see OUT/logs)."""
+    for k, p in pids.items():
+        try:
+            peak_rss[k] = max(peak_rss[k], rss_mb(p)[0])
+        except (FileNotFoundError, ProcessLookupError):
+            pass
+    for name, p in alive:
+        if p.poll() is not None:
+            raise Failure(f"{name} exited ({p.returncode}) during {during}; see {out}/logs")

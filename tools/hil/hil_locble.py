@@ -31,7 +31,7 @@ import time
 
 import yaml
 
-from hil_common import Failure, family_layout, read_jsonl, rss_mb, start_map_node, start_mosquitto, wait_for
+from hil_common import Failure, family_layout, read_jsonl, rss_mb, start_map_node, start_mosquitto, wait_for, watch
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -188,14 +188,7 @@ def hil_locble(args, bin_dir, out, run):
     peak_rss = {k: 0.0 for k in pids}
     # the scene plays; then one update period (1 s of data time) and a margin for the last estimates
     while not feed_said(feed_log, r"feed: (done|interrupted)"):
-        for k, p in pids.items():
-            try:
-                peak_rss[k] = max(peak_rss[k], rss_mb(p)[0])
-            except (FileNotFoundError, ProcessLookupError):
-                pass
-        for name, p in alive:
-            if p.poll() is not None:
-                raise Failure(f"{name} exited ({p.returncode}) during the scene; see {out}/logs")
+        watch(pids, peak_rss, alive, "the scene", out)
         time.sleep(0.1)
     done = feed_said(feed_log, r"feed: (done|interrupted) (.*)")
     fed = {k: float(v) for k, v in re.findall(r"(\w+)=([-0-9.naninf]+)", done.group(2))}

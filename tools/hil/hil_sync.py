@@ -33,7 +33,7 @@ import time
 
 import yaml
 
-from hil_common import Failure, family_layout, read_jsonl, rss_mb, start_jackd, start_map_node, start_mosquitto, wait_for
+from hil_common import Failure, family_layout, read_jsonl, start_jackd, start_map_node, start_mosquitto, wait_for, watch
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -347,14 +347,7 @@ def hil_sync(args, bin_dir, out, run):
     peak_rss = {k: 0.0 for k in pids}
     end = t0 + 2.0 + duration_s + args.settle  # the lead-in, the layout, a settle for the last estimates
     while time.monotonic() < end:
-        for k, p in pids.items():
-            try:
-                peak_rss[k] = max(peak_rss[k], rss_mb(p)[0])
-            except (FileNotFoundError, ProcessLookupError):
-                pass
-        for name, p in alive:
-            if p.poll() is not None:
-                raise Failure(f"{name} exited ({p.returncode}) during the layout; see {out}/logs")
+        watch(pids, peak_rss, alive, "the layout", out)
         time.sleep(0.1)
     wall = time.monotonic() - t0
     cpu = {k: 100.0 * (cpu_s(p) - cpu0[k]) / wall for k, p in pids.items()}
