@@ -84,7 +84,11 @@ const ParamSchema& link_sync_schema() {
       string_param("sources", std::string(""), "Senders whose syncs become RadioSync events, comma-separated ids; \"\" = any."),
       float_param("send_period_s", 0.0, 0.0, 3600.0, "s",
                   "Transmit (the radio role): one sync every this many seconds of CLOCK_MONOTONIC; 0 = receive only."),
-      float_param("send_first_s", 1.0, 0.0, 3600.0, "s", "Transmit: the first sync this long after the source starts."),
+      float_param("send_first_s", 1.0, 0.0, 3600.0, "s", "Transmit: the first sync this long after the epoch."),
+      float_param("send_epoch_monotonic_s", 0.0, 0.0, 1e9, "s",
+                  "Transmit: the schedule's epoch on CLOCK_MONOTONIC (several boards of one host share one: staggered "
+                  "beacons stay staggered however their nodes start); 0 = when the source starts. Slots already past "
+                  "at start are skipped."),
       int_param("send_count", std::int64_t{0}, 0, 1'000'000'000, "", "Transmit: this many syncs, then stop; 0 = until stopped."),
       string_param("send_as", std::string(""), "Transmit: the sender id in the topic and the message; \"\" = the device's id."),
   };
@@ -146,6 +150,7 @@ void LinkSyncSource::open(const Params& params, HostContext& ctx) {
   send_period_s_ = params.get_float("send_period_s");
   send_first_s_ = params.get_float("send_first_s");
   send_count_ = params.get_int("send_count");
+  send_epoch_s_ = params.get_float("send_epoch_monotonic_s");
   send_as_ = params.get_string("send_as").empty() ? device_ : params.get_string("send_as");
   if (send_period_s_ > 0.0 && !valid_id(send_as_))
     throw std::runtime_error("link sync: param 'send_as': '" + send_as_ +
@@ -172,10 +177,17 @@ void LinkSyncSource::start(SensorQueue& queue) {
 }
 
 void LinkSyncSource::transmit() {
-  using clock = std::chrono::steady_clock;  // CLOCK_MONOTONIC on Linux
-  const clock::time_point t0 = clock::now();
+  using clock = std::chrono::steady_clock;  // CLOCK_MONOTONIC on Linux (libstdc++)
+  const double now_s = static_cast<double>(monotonic_ns()) * 1e-9;
+  const double epoch_s = send_epoch_s_ > 0.0 ? send_epoch_s_ : now_s;
+  const clock::time_point t0 =
+      clock::now() + std::chrono::duration_cast<clock::duration>(std::chrono::duration<double>(epoch_s - now_s));
+  // the first slot not yet past (an epoch in the past skips the slots before now)
+  std::uint64_t first = 0;
+  if (const double behind = now_s - epoch_s - send_first_s_; behind > 0.0)
+    first = static_cast<std::uint64_t>(std::ceil(behind / send_period_s_));
   std::unique_lock lock(thread_mutex_);
-  for (std::uint64_t k = 0; send_count_ == 0 || k < static_cast<std::uint64_t>(send_count_); ++k) {
+  for (std::uint64_t k = first; send_count_ == 0 || k < static_cast<std::uint64_t>(send_count_); ++k) {
     const auto due = t0 + std::chrono::duration_cast<clock::duration>(
                               std::chrono::duration<double>(send_first_s_ + static_cast<double>(k) * send_period_s_));
     if (wake_.wait_until(lock, due, [this] { return stopping_; })) return;

@@ -8,8 +8,10 @@
 //             replay's sync.csv and a live node's RadioSync mean the same thing: the local time at which
 //             the sync arrived. A plugin that emits schedules its sound from it (plugins/sync_emitter).
 //   transmit  (the "radio" role, `send_period_s` > 0) a thread publishes `<topic_prefix>/<send_as>`
-//             every send_period_s on CLOCK_MONOTONIC from send_first_s after start(); the node receives
-//             its own message like every other node (a beacon schedules its beep from its own arrival).
+//             every send_period_s on CLOCK_MONOTONIC from send_first_s after the epoch (start(), or
+//             `send_epoch_monotonic_s`: boards of one host that share it keep their stagger); the node
+//             receives its own message like every other node (a beacon schedules its beep from its own
+//             arrival). The seq of a message is its slot k, so a skipped slot shows as a gap.
 //
 // Why over the link: there is no Wi-Fi beacon frame or BLE trigger a process can send and time here;
 // the link is the radio the boards share. Its latency is real and unknown to the receiver, as a
@@ -82,7 +84,7 @@ class LinkSyncSource final : public SensorSource {
   Logger* log_ = nullptr;
   std::string device_, prefix_, send_as_;
   std::vector<std::string> sources_;  ///< empty = any
-  double send_period_s_ = 0.0, send_first_s_ = 1.0;
+  double send_period_s_ = 0.0, send_first_s_ = 1.0, send_epoch_s_ = 0.0;
   std::int64_t send_count_ = 0;
   std::uint64_t sub_ = 0;
   bool subscribed_ = false;

@@ -167,7 +167,8 @@ def node_config(args, ident, role, server, mqtt_port, room_out, out_jsonl, dev, 
         device["audio"] = jack_audio(server, ident, 1, "")
         device["playback"] = jack_playback(server, ident)
         device["sync"] = {"source": "link", "params": {"sources": ident, "send_period_s": extra["period_s"],
-                                                       "send_first_s": extra["first_s"]}}
+                                                       "send_first_s": extra["first_s"],
+                                                       "send_epoch_monotonic_s": extra["epoch"]}}
         base["devices"] = [device]
         base["localizers"] = [{"plugin": "sync_emitter"}]
         return base
@@ -319,12 +320,17 @@ def hil_sync(args, bin_dir, out, run):
     nodes, map_url = {}, None
     events, stop_sse = [], threading.Event()
     node_out = {}
+    epoch = None
     senders = {i for i in order if plan[i][1].get("sync_params", plan[i][1]).get("send_period_s") or plan[i][0] == "beacon"}
     for ident in order:  # listeners first: the beacons' first syncs find them running
         role, extra = plan[ident]
-        if ident in senders:  # a sender's first sync must find every listener's link sync source started
+        if ident in senders and epoch is None:  # the first sync must find every listener's sync source started
             wait_for(lambda: all("running " in log_text(out, "node-" + k) for k in nodes), 90,
                      "the listening nodes to start", [("locusd " + k, v) for k, v in nodes.items()])
+            # one epoch for every sender's schedule: the beacons stay staggered however their nodes start
+            epoch = time.monotonic() + 2.0 + 1.5 * len(senders)
+        if role == "beacon":
+            extra = dict(extra, epoch=round(epoch, 6))
         path_out = os.path.join(out, "nodes", ident + ".jsonl")
         cfg = node_config(args, ident, role, server, mqtt_port, room_out, path_out, devs.get(ident), extra)
         path = os.path.join(out, "nodes", ident + ".yaml")

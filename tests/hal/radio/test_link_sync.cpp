@@ -124,6 +124,32 @@ TEST(LinkSyncSource, TransmitsItsOwnSyncsAndReceivesThem) {
   EXPECT_TRUE(host.log.contains("one-way latency"));
 }
 
+TEST(LinkSyncSource, AnEpochInThePastSkipsItsSlots) {
+  // Boards sharing one epoch keep their stagger; a board that starts late skips the slots already past.
+  test::TestHost host;
+  HostContext ctx = host.context("sync", "B2");
+  LinkSyncSource src;
+  Params p = Params::defaults(link_sync_schema());
+  p.set("send_period_s", 0.02);
+  p.set("send_first_s", 0.0);
+  p.set("send_count", std::int64_t{60});
+  p.set("send_epoch_monotonic_s", monotonic_s() - 1.0);  // slots 0..49 are past
+  src.open(p, ctx);
+  std::vector<std::uint64_t> seqs;
+  host.link.subscribe("sync/#", [&](const LinkMessage& m) { seqs.push_back(decode_sync(m.payload)->seq); });
+  SensorQueue q(64);
+  src.start(q);
+  for (int i = 0; i < 400 && src.sent() < 9; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // the last slot (59) is 0.2 s from the start
+  src.stop();
+  ASSERT_FALSE(seqs.empty());
+  EXPECT_GE(seqs.front(), 50u);
+  EXPECT_LE(seqs.front(), 52u);  // the first slot not yet past when the test started it
+  EXPECT_EQ(seqs.back(), 59u);
+  EXPECT_EQ(src.sent(), 60u - seqs.front());
+  EXPECT_EQ(seqs.size(), src.sent());
+}
+
 TEST(LinkSyncSource, StopEndsTheTransmitterAtOnce) {
   test::TestHost host;
   HostContext ctx = host.context("sync", "B1");
