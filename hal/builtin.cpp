@@ -7,6 +7,7 @@
 
 #include "iio/iio_source.hpp"
 #include "locus/build_options.hpp"
+#include "radio/link_sync.hpp"
 #include "scene/scene_sources.hpp"
 #include "synth/synth_source.hpp"
 #if LOCUS_HAVE_ALSA
@@ -49,6 +50,7 @@ void register_builtin_sources(Registry& registry) {
 #else
   add_not_built(registry, "jack");
 #endif
+  radio::register_link_sync_source(registry);       // link (radio sync over the node's link; add_sensor_source kind Sync)
   iio::register_iio_source(registry);               // iio (IMU from Linux IIO sysfs + /dev/iio:deviceN)
 #if LOCUS_HAVE_BLUEZ
   bluez::register_bluez_source(registry);           // bluez (BLE adverts through BlueZ D-Bus; add_sensor_source kind Ble)

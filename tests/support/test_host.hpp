@@ -25,6 +25,7 @@
 
 #include "locus/audio_source.hpp"
 #include "locus/detector.hpp"
+#include "locus/emitter.hpp"
 #include "locus/events.hpp"
 #include "locus/fft.hpp"
 #include "locus/host.hpp"
@@ -64,6 +65,33 @@ class RecordingLogger final : public Logger {
  private:
   mutable std::mutex mutex_;
   std::vector<Entry> entries_;
+};
+
+/// An Emitter that records every schedule() call (or refuses them all, `refuse`); its playback frame
+/// is whatever the test sets.
+class RecordingEmitter : public Emitter {
+ public:
+  struct Call {
+    SignalSpec signal;
+    std::uint64_t start_frame;
+    double gain;
+  };
+  explicit RecordingEmitter(std::uint64_t start_frame = 0, double rate_hz = 48000.0) : frame(start_frame), rate(rate_hz) {}
+  bool schedule(const SignalSpec& signal, std::uint64_t start_frame, double gain, std::string* error) override {
+    if (refuse) {
+      if (error) *error = "too many emissions pending";
+      return false;
+    }
+    calls.push_back({signal, start_frame, gain});
+    return true;
+  }
+  std::uint64_t playback_frame() const noexcept override { return frame; }
+  double sample_rate_hz() const noexcept override { return rate; }
+  std::uint64_t late_emissions() const noexcept override { return 0; }
+  std::vector<Call> calls;
+  std::uint64_t frame = 0;
+  double rate = 48000.0;
+  bool refuse = false;
 };
 
 /// A clock the test moves by hand.

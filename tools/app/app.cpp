@@ -151,7 +151,9 @@ int run_node(const RunOptions& opts) {
   auto log = host_logger();
 
   try {
-    Pipeline pipeline(config, registry);
+    PipelineOptions po;
+    po.geometry = opts.geometry;
+    Pipeline pipeline(config, registry, std::move(po));
     std::string node = config.file;
     if (const auto slash = node.rfind('/'); slash != std::string::npos) node = node.substr(slash + 1);
     if (const auto dot = node.rfind('.'); dot != std::string::npos && dot > 0) node = node.substr(0, dot);

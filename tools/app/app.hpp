@@ -6,6 +6,7 @@
 
 #include <csignal>
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -17,6 +18,7 @@ class App;
 }  // namespace CLI
 
 #include "locus/host.hpp"
+#include "locus/pipeline.hpp"
 
 namespace locus {
 class Pipeline;
@@ -53,6 +55,9 @@ struct RunOptions {
   std::optional<std::string> output;  ///< overrides output.path
   std::optional<std::string> log_level;
   PipelineHooks hooks;
+  /// Declarations by device id that override the config's `geometry:` sections (locusd --layout:
+  /// a scene's devices and emitters, with the scene's signals).
+  std::map<std::string, GeometrySpec> geometry;
 };
 
 /// "trace" | "debug" | "info" | "warn" | "error" -> LogLevel; false for anything else.

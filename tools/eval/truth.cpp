@@ -36,6 +36,13 @@ std::string scene_family(const std::string& yaml_path) {
   return f.Scalar();
 }
 
+/// True when the scene is a live run's truth whose devices each had the room's IMU (`locus room` writes
+/// environment.room_imu: true): their samples stayed on the nodes, as their recordings did.
+bool room_imu(const std::string& yaml_path) {
+  const YAML::Node env = YAML::LoadFile(yaml_path)["environment"];
+  return env && env.IsMap() && env["room_imu"] && env["room_imu"].IsScalar() && env["room_imu"].Scalar() == "true";
+}
+
 std::vector<std::string> issues_of(const scene::SceneError& e) {
   std::vector<std::string> out;
   for (const auto& issue : e.issues()) out.push_back(issue.format());
@@ -151,6 +158,7 @@ TruthData load_truth(const std::string& scene_dir) {
   out.scene_dir = scene_dir;
   out.scene_name = sc.name;
   out.family = scene_family(yaml);
+  const bool imu_in_room = room_imu(yaml);
   for (const auto& d : sc.devices) {
     TruthObject o;
     o.id = d.id;
@@ -158,7 +166,7 @@ TruthData load_truth(const std::string& scene_dir) {
     // A device listens when it has a recording, or microphones: the scene of a live run (`locus room`)
     // declares the devices' microphones, their recordings stayed on the nodes.
     o.has_audio = !d.audio.empty() || !d.mics_m.empty();
-    o.has_imu = !d.imu.empty();
+    o.has_imu = !d.imu.empty() || imu_in_room;
     o.has_speaker = d.speaker_m.has_value();
     if (d.anchor_position_m) o.anchor_m = Vec3((*d.anchor_position_m)[0], (*d.anchor_position_m)[1], (*d.anchor_position_m)[2]);
     for (const auto& s : d.emits)

@@ -2,8 +2,9 @@
 """Hardware-in-the-loop run of a localizer (`./run hil NAME`, docs/room.md): live nodes in a virtual room.
 
 `locble` is hil_locble.py (BlueZ through dbusmock and a fake IIO IMU, played by `locus feed`), `tum`
-hil_tum.py (TUM's live roles: link sync, election, emissions); the process runner and the other pieces
-the runs share are hil_common.py. This file: the command line and `amil`.
+hil_tum.py (TUM's live roles: link sync, election, emissions); `spyloc` and `montage` are hil_sync.py
+(emitters scheduled from a radio sync over MQTT); the process runner and the other pieces the runs share
+are hil_common.py. This file: the command line and `amil`.
 
 For `amil`: simulates the layout (`locus simulate amil`: the player's triangle gesture and 12 listeners;
 the live protocol: the player pauses 0.8-1.0 s at each corner, long enough for its beep), then starts
@@ -44,15 +45,17 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, os.path.join(ROOT, "tools", "scripts"))
 sys.path.insert(0, HERE)
-from hil_common import (Failure, Run, check_alive, read_jsonl, sample_peaks, start_map_node, start_room,  # noqa: E402
-                        stop_nodes, stop_room, wait_for)
+from hil_common import (Failure, Run, check_alive, read_jsonl, rss_mb, sample_peaks, start_map_node,  # noqa: E402
+                        start_room, stop_nodes, stop_room, wait_for)
 from map_measure import cpu_s  # noqa: E402
 import hil_locble  # noqa: E402
+import hil_sync  # noqa: E402
 import hil_tum  # noqa: E402
 
 import yaml  # noqa: E402
 
-LIVE = {"amil", "locble", "tum"}  # localizers with a live HIL run (locble: hil_locble.py, tum: hil_tum.py)
+# localizers with a live HIL run (locble: hil_locble.py, tum: hil_tum.py; spyloc, montage: hil_sync.py)
+LIVE = {"amil", "locble", "tum", "spyloc", "montage"}
 
 
 def layout_for(args, bin_dir, out):
@@ -262,7 +265,7 @@ def hil_amil(args, bin_dir, out, run):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("name", help="localizer (amil, locble, tum)")
+    ap.add_argument("name", help="localizer (amil, locble, tum, spyloc, montage)")
     ap.add_argument("--bin", default=os.path.join(ROOT, "build", "bin"))
     ap.add_argument("--out", help="run directory (default: a fresh temporary one, printed)")
     ap.add_argument("--listeners", type=int, default=12, help="listeners of the layout (1..12)")
@@ -272,24 +275,35 @@ def main():
     ap.add_argument("--realtime", type=int, default=1, choices=[0, 1],
                     help="1 (default, as on a board): jackd -R -P 70, so jackd's, the room's and every node's process "
                          "threads run SCHED_FIFO when the user may (else jackd says so and runs without); 0: jackd -r")
-    ap.add_argument("--period", type=int, default=1024, help="JACK period (frames)")
-    ap.add_argument("--reflections", type=int, default=0, choices=[0, 1], help="the room's image-source order")
+    ap.add_argument("--period", type=int, default=None,
+                    help="JACK period (frames; amil 1024, spyloc 256: a beacon's beep is due 50-75 ms after its sync, "
+                         "which must cross the link, one period and the node's pipeline first)")
+    ap.add_argument("--reflections", type=int, default=None, choices=[0, 1],
+                    help="the room's image-source order (amil 0; spyloc 1: its LoS/NLoS classifier reads the decay)")
     ap.add_argument("--self-gain", type=float, default=0.2,
                     help="the player's own speaker into its own microphone (the room's --self-gain)")
     ap.add_argument("--map", default="127.0.0.1:0", help="the player's live map ([HOST:]PORT, or off)")
     ap.add_argument("--wait", type=float, default=15.0, help="seconds to wait for the estimates after the layout")
     ap.add_argument("--json", help="write the figures here")
     ap.add_argument("--imu-events", action="store_true", help="the nodes also write their IMU samples (JSON lines)")
-    ap.add_argument("--scene", help="locble, tum: the layout, any scene of the family (default: locus simulate FAMILY --seed N)")
+    ap.add_argument("--scene", help="locble, tum, spyloc, montage: the layout, any scene of the family "
+                                     "(default: locus simulate NAME --seed N)")
     ap.add_argument("--track", default="static", choices=["static", "ellipse"],
                     help="tum: the simulated layout's moving device (locus simulate tum -o track=)")
-    ap.add_argument("--duration", type=float, default=0.0,
-                    help="tum: seconds of exchanges (0 = the layout's span: its truth, or 12 s for a static one)")
     ap.add_argument("--speed", type=float, default=1.0,
                     help="locble: scene seconds per wall second; only 1: the IMU's time base cannot be compressed "
                          "honestly (docs/room.md)")
-    ap.add_argument("--settle", type=float, default=1.0,
-                    help="locble: seconds the node runs on after the scene's end before it is stopped (its final update)")
+    ap.add_argument("--settle", type=float, default=None,
+                    help="seconds the nodes run on after the scene's end before they are stopped (their final updates; "
+                         "locble 1, spyloc 3)")
+    ap.add_argument("--duration", type=float, default=None,
+                    help="tum: seconds of exchanges (default: the layout's span: its truth, or 12 s for a static one); "
+                         "spyloc: the simulated layout's length (s; default the family's)")
+    ap.add_argument("--calibrate-room-delay", action="store_true",
+                    help="spyloc: tell the walker every beacon's sync_delay_s plus the room's converter delay (34 "
+                         "samples, +0.26 m on every range), as a deployment calibrates its beacons; default: uncalibrated")
+    ap.add_argument("--sync-first", type=float, default=1.0,
+                    help="spyloc: the first beacon's first sync this long after its node starts (the others staggered)")
     args = ap.parse_args()
 
     names = subprocess.run([os.path.join(args.bin, "locus"), "plugins", "--json"], capture_output=True, text=True)
@@ -306,7 +320,13 @@ def main():
     if not 1 <= args.listeners <= 12:
         print("hil: --listeners: expected 1..12", file=sys.stderr)
         return 2
-    if args.name in ("amil", "tum"):
+    if args.period is None:
+        args.period = 1024 if args.name in ("amil", "tum") else 256
+    if args.reflections is None:
+        args.reflections = 0 if args.name in ("amil", "tum") else 1
+    if args.settle is None:
+        args.settle = 1.0 if args.name == "locble" else 3.0
+    if args.name in ("amil", "tum") + hil_sync.FAMILIES:
         for tool in ("jackd", "jack_lsp", "mosquitto"):
             if shutil.which(tool) is None:
                 print(f"hil: {tool} not found (tools/install-deps.sh installs it)", file=sys.stderr)
@@ -337,6 +357,8 @@ def main():
             hil_amil(args, args.bin, out, run)
         elif args.name == "tum":
             hil_tum.hil_tum(args, args.bin, out, run)
+        elif args.name in hil_sync.FAMILIES:
+            hil_sync.hil_sync(args, args.bin, out, run)
         else:
             hil_locble.hil_locble(args, args.bin, out, run)
         print(f"hil finished in {time.monotonic() - t0:.1f} s; files in {out}")

@@ -129,10 +129,31 @@ def start_map_node(run, name, cmd, env, listen, title, events, stop_sse, log_hin
     return p, url
 
 
-def start_jackd(run, out, server, period, realtime, env):
-    """jackd -n SERVER (dummy driver, 44.1 kHz, synchronous, one period of `period` frames; -R -P 70 when
-    `realtime`), answering when this returns; a full JACK server registry is named with the command that
-    frees it. The jackd process."""
+def family_layout(locus, family, out, seed, scene_dir=None, extra=()):
+    """The layout of a run: `scene_dir` as given (any scene of the family), else `locus simulate FAMILY
+    OUT/layout --seed SEED EXTRA...`; (its directory, scene.yaml as a dict)."""
+    if scene_dir:
+        layout = os.path.abspath(scene_dir)
+    else:
+        layout = os.path.join(out, "layout")
+        cmd = [locus, "simulate", family, layout, "--seed", str(seed), "-q", *extra]
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        if r.returncode != 0:
+            raise Failure(f"{' '.join(cmd)} failed: {r.stderr}")
+    path = os.path.join(layout, "scene.yaml")
+    import yaml
+    try:
+        with open(path) as f:
+            return layout, yaml.safe_load(f)
+    except (OSError, yaml.YAMLError) as e:
+        raise Failure(f"--scene: cannot read {path}: {e}")
+
+
+def start_jackd(run, out, server, period, realtime):
+    """jackd (dummy driver, 44.1 kHz, synchronous, one period of `period` frames, SCHED_FIFO process
+    threads when `realtime` and the user may) as server `server`, answering when this returns; (process,
+    the environment its clients use). A full JACK server registry is named with the command that frees it."""
+    env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1", JACK_DEFAULT_SERVER=server)
     rt = ["-R", "-P", "70"] if realtime else ["-r"]
     jackd = run.start("jackd", ["jackd", "-n", server, *rt, "-S", "-d", "dummy", "-r", "44100", "-p", str(period)], env=env)
     try:
@@ -144,7 +165,7 @@ def start_jackd(run, out, server, period, realtime, env):
                 raise Failure(f"{e}: JACK's server registry is full; `python3 tools/jack/reclaim_registry.py` "
                               "frees the slots that dead servers still hold (--list shows them)") from None
         raise
-    return jackd
+    return jackd, env
 
 
 def node_log_figures(out, ident):
@@ -175,6 +196,13 @@ def check_alive(alive, during, out):
     for name, p in alive:
         if p.poll() is not None:
             raise Failure(f"{name} exited ({p.returncode}) during {during}; see {out}/logs")
+
+
+def watch(pids, peak_rss, alive, during, out):
+    """One look at a running HIL: each process's peak RSS (MB, in `peak_rss` by name) and a Failure naming
+    the first of `alive` ((name, Popen)) that exited `during` what (see OUT/logs)."""
+    sample_peaks(pids, peak_rss)
+    check_alive(alive, during, out)
 
 
 def stop_nodes(run, out, idents, origins_csv):
@@ -228,8 +256,7 @@ def start_room(run, out, locus, layout, args, extra=()):
     --seed, --reflections, --self-gain of `args`, the nodes' origins from OUT/node_origins.csv; `extra`
     room options), its ports and IIO trees up when this returns. A Room."""
     server = f"locus_hil_{os.getpid()}"
-    env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1", JACK_DEFAULT_SERVER=server)
-    jackd = start_jackd(run, out, server, args.period, args.realtime, env)
+    jackd, env = start_jackd(run, out, server, args.period, args.realtime)
     mqtt_port, broker = start_mosquitto(run, out)
     r = Room(server=server, env=env, jackd=jackd, mqtt_port=mqtt_port, broker=broker, out=os.path.join(out, "run"),
              origins_csv=os.path.join(out, "node_origins.csv"), log=os.path.join(out, "logs", "room.out"))

@@ -31,7 +31,7 @@ import time
 
 import yaml
 
-from hil_common import Failure, check_alive, read_jsonl, rss_mb, sample_peaks, start_map_node, start_mosquitto, wait_for
+from hil_common import Failure, family_layout, read_jsonl, rss_mb, start_map_node, start_mosquitto, wait_for, watch
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -73,23 +73,10 @@ def check_tools():
 def layout_for(args, locus, out):
     """The layout: --scene DIR as given, else `locus simulate locble --seed N`; its observer (the device
     with a ble stream) and the scene."""
-    if args.scene:
-        layout = os.path.abspath(args.scene)
-    else:
-        layout = os.path.join(out, "layout")
-        cmd = [locus, "simulate", "locble", layout, "--seed", str(args.seed), "-q"]
-        r = subprocess.run(cmd, capture_output=True, text=True)
-        if r.returncode != 0:
-            raise Failure(f"{' '.join(cmd)} failed: {r.stderr}")
-    path = os.path.join(layout, "scene.yaml")
-    try:
-        with open(path) as f:
-            scene = yaml.safe_load(f)
-    except (OSError, yaml.YAMLError) as e:
-        raise Failure(f"--scene: cannot read {path}: {e}")
+    layout, scene = family_layout(locus, "locble", out, args.seed, args.scene)
     observers = [d for d in scene.get("devices") or [] if d.get("ble") and d.get("imu")]
     if not observers:
-        raise Failure(f"{path}: no device with both a ble and an imu stream (devices[].ble, devices[].imu): "
+        raise Failure(f"{layout}/scene.yaml: no device with both a ble and an imu stream (devices[].ble, devices[].imu): "
                       "not a LocBLE scene")
     return layout, scene, observers[0]["id"]
 
@@ -201,8 +188,7 @@ def hil_locble(args, bin_dir, out, run):
     peak_rss = {k: 0.0 for k in pids}
     # the scene plays; then one update period (1 s of data time) and a margin for the last estimates
     while not feed_said(feed_log, r"feed: (done|interrupted)"):
-        sample_peaks(pids, peak_rss)
-        check_alive(alive, "the scene", out)
+        watch(pids, peak_rss, alive, "the scene", out)
         time.sleep(0.1)
     done = feed_said(feed_log, r"feed: (done|interrupted) (.*)")
     fed = {k: float(v) for k, v in re.findall(r"(\w+)=([-0-9.naninf]+)", done.group(2))}

@@ -37,6 +37,11 @@ int main(int argc, char** argv) {
   cli.add_option("--speed", speed, "with --scene: realtime (paced like live devices, default) or max")
       ->check(CLI::IsMember({"max", "realtime"}));
   cli.add_option("--events", events, "with --scene: comma-separated event types to write (default: estimate)");
+  std::optional<std::string> layout;
+  cli.add_option("--layout", layout,
+                 "a live node's declarations from this scene directory's scene.yaml (no stream is read): each config "
+                 "device with a scene device's or emitter's id gets its mics, speaker, anchor and emits, and every plugin "
+                 "the scene's signals (beacons, codes), as in a replay; they override the config's geometry: sections");
 #if LOCUS_HAVE_HTTP
   locus::map::HttpCli http;
   locus::map::add_http_options(cli, http);
@@ -49,6 +54,18 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     const int code = cli.exit(e);
     return code == 0 ? 0 : locus::app::kExitBadConfig;
+  }
+  if (layout) {
+    if (scene) {
+      std::cerr << "locusd: --layout is for a live node; --scene takes the declarations from its scene already\n";
+      return locus::app::kExitBadConfig;
+    }
+    try {
+      opts.geometry = locus::app::layout_geometry(locus::scene::load_scene(*layout));
+    } catch (const std::exception& e) {
+      std::cerr << "locusd: --layout " << *layout << ": " << e.what() << "\n";
+      return locus::app::kExitBadConfig;
+    }
   }
   if (cli.count("--speed") > 0 || events) {
     if (!scene) {

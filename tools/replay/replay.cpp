@@ -100,26 +100,6 @@ Config node_config(const Config& base, const Registry& registry, const scene::Sc
   return cfg;
 }
 
-GeometrySpec geometry_of(const scene::DeviceSpec& spec) {
-  GeometrySpec g;
-  if (spec.mics_m.size() > DeviceGeometry::kMaxMics) {
-    throw std::runtime_error("device '" + spec.id + "' has " + std::to_string(spec.mics_m.size()) +
-                             " mics; at most " + std::to_string(DeviceGeometry::kMaxMics) + " are supported");
-  }
-  g.geometry.mic_count = static_cast<std::uint32_t>(spec.mics_m.size());
-  for (std::size_t i = 0; i < spec.mics_m.size(); ++i) g.geometry.mics_m[i] = spec.mics_m[i];
-  if (spec.speaker_m) {
-    g.geometry.has_speaker = true;
-    g.geometry.speaker_m = *spec.speaker_m;
-  }
-  if (spec.anchor_position_m) {
-    g.geometry.has_anchor = true;
-    g.geometry.anchor_m = *spec.anchor_position_m;
-  }
-  g.emits = spec.emits;
-  return g;
-}
-
 bool has_stream(const scene::DeviceSpec& d) {
   return !d.audio.empty() || !d.imu.empty() || !d.ble.empty() || !d.sync.empty();
 }
@@ -288,6 +268,49 @@ int run_replay(const ReplayOptions& opts) {
   if (opts.hooks.ended) opts.hooks.ended(signal_number != 0);
   nodes.clear();  // unsubscribes nothing on the link by itself: no message is in flight any more
   return status;
+}
+
+GeometrySpec geometry_of(const scene::DeviceSpec& spec) {
+  GeometrySpec g;
+  if (spec.mics_m.size() > DeviceGeometry::kMaxMics) {
+    throw std::runtime_error("device '" + spec.id + "' has " + std::to_string(spec.mics_m.size()) +
+                             " mics; at most " + std::to_string(DeviceGeometry::kMaxMics) + " are supported");
+  }
+  g.geometry.mic_count = static_cast<std::uint32_t>(spec.mics_m.size());
+  for (std::size_t i = 0; i < spec.mics_m.size(); ++i) g.geometry.mics_m[i] = spec.mics_m[i];
+  if (spec.speaker_m) {
+    g.geometry.has_speaker = true;
+    g.geometry.speaker_m = *spec.speaker_m;
+  }
+  if (spec.anchor_position_m) {
+    g.geometry.has_anchor = true;
+    g.geometry.anchor_m = *spec.anchor_position_m;
+  }
+  g.emits = spec.emits;
+  return g;
+}
+
+std::map<std::string, GeometrySpec> layout_geometry(const scene::Scene& sc) {
+  std::map<std::string, GeometrySpec> out;
+  const std::vector<SceneSignal> scene_emits = scene::scene_signals(sc);
+  for (const scene::DeviceSpec& spec : sc.devices) {
+    GeometrySpec g = geometry_of(spec);
+    g.scene_emits = scene_emits;
+    out.emplace(spec.id, std::move(g));
+  }
+  // An emitter (a beacon) records nothing; as a live node it plays its emits from its body origin.
+  for (const scene::EmitterSpec& e : sc.emitters) {
+    GeometrySpec g;
+    g.geometry.has_speaker = true;
+    if (e.anchor_position_m) {
+      g.geometry.has_anchor = true;
+      g.geometry.anchor_m = *e.anchor_position_m;
+    }
+    g.emits = e.emits;
+    g.scene_emits = scene_emits;
+    out.emplace(e.id, std::move(g));
+  }
+  return out;
 }
 
 }  // namespace locus::app

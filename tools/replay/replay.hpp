@@ -18,10 +18,13 @@
 // order, the localizers finish, each followed by the same settling; then the output is flushed.
 #pragma once
 
+#include <map>
 #include <optional>
 #include <string>
 
 #include "app.hpp"
+#include "locus/pipeline.hpp"
+#include "locus/scene/scene.hpp"
 
 namespace locus::app {
 
@@ -39,5 +42,15 @@ struct ReplayOptions {
 /// printed); 1 a stream failed mid-way or the replay was interrupted (after flushing everything that
 /// was accepted before).
 int run_replay(const ReplayOptions& options);
+
+/// A scene device's declarations as the geometry its plugins get (mics, speaker, anchor, emits).
+/// Throws std::runtime_error when it has more microphones than DeviceGeometry holds.
+GeometrySpec geometry_of(const scene::DeviceSpec& spec);
+
+/// Every device's and every emitter's declarations in `sc` by id, each with the scene's signals
+/// (`scene_emits`): what `locus replay` gives the plugins, for a live node that runs against a layout
+/// (`locusd --layout DIR`). An emitter (a beacon: it records nothing) gets a speaker at its body
+/// origin, its anchor and its emits.
+std::map<std::string, GeometrySpec> layout_geometry(const scene::Scene& sc);
 
 }  // namespace locus::app

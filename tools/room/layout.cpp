@@ -88,6 +88,23 @@ Layout load_layout(const std::string& dir, double ease_s) {
       l.t_end_s = std::max(l.t_end_s, r.t_s);
     }
   }
+  // A device's trajectory: its truth rows (eased in when it moves), else its anchor; an emitter's anchor
+  // wins over a single truth row (a simulator writes one row per beacon). False: no position.
+  auto place = [&](LayoutDevice& d, const std::optional<scene::Vec3>& anchor, bool anchor_over_one_row) {
+    const auto it = rows.find(d.id);
+    if (it != rows.end() && !(anchor_over_one_row && anchor && it->second.first.size() == 1)) {
+      auto sampled = std::make_shared<sim::SampledTrajectory>(it->second.first, it->second.second);
+      d.times_s = it->second.first;
+      d.trajectory = sampled->is_static() ? std::shared_ptr<const sim::Trajectory>(sampled)
+                                          : std::make_shared<EasedTrajectory>(sampled, l.t_begin_s, ease_s);
+    } else if (anchor) {
+      d.trajectory = std::make_shared<sim::StaticTrajectory>(Eigen::Vector3d((*anchor)[0], (*anchor)[1], (*anchor)[2]));
+      d.times_s = {l.t_begin_s};
+    } else {
+      return false;
+    }
+    return true;
+  };
   for (const auto& spec : l.scene.devices) {
     LayoutDevice d;
     d.id = spec.id;
@@ -98,20 +115,22 @@ Layout load_layout(const std::string& dir, double ease_s) {
       const auto c = l.scene.truth->clocks.find(spec.id);
       if (c != l.scene.truth->clocks.end()) d.clock = c->second;
     }
-    const auto it = rows.find(spec.id);
-    if (it != rows.end()) {
-      auto sampled = std::make_shared<sim::SampledTrajectory>(it->second.first, it->second.second);
-      d.times_s = it->second.first;
-      d.trajectory = sampled->is_static() ? std::shared_ptr<const sim::Trajectory>(sampled)
-                                          : std::make_shared<EasedTrajectory>(sampled, l.t_begin_s, ease_s);
-    } else if (spec.anchor_position_m) {
-      const auto& a = *spec.anchor_position_m;
-      d.trajectory = std::make_shared<sim::StaticTrajectory>(Eigen::Vector3d(a[0], a[1], a[2]));
-      d.times_s = {l.t_begin_s};
-    } else {
+    if (!place(d, spec.anchor_position_m, false))
       throw std::runtime_error(yaml + ":" + std::to_string(spec.line) + ": device '" + spec.id +
                                "': no position (expected rows of it in the scene's truth.csv, or an anchor)");
-    }
+    l.devices.push_back(std::move(d));
+  }
+  // Emitters that make a sound (beacons): a speaker port, no microphones; static at their anchor, or
+  // moving along their truth rows.
+  for (const auto& spec : l.scene.emitters) {
+    if (std::none_of(spec.emits.begin(), spec.emits.end(), [](const dsp::SignalSpec& s) { return s.acoustic(); })) continue;
+    LayoutDevice d;
+    d.id = spec.id;
+    d.emits = spec.emits;
+    d.emitter = true;
+    if (!place(d, spec.anchor_position_m, true))
+      throw std::runtime_error(yaml + ":" + std::to_string(spec.line) + ": emitter '" + spec.id +
+                               "': no position (expected an anchor, or rows of it in the scene's truth.csv)");
     l.devices.push_back(std::move(d));
   }
   if (l.room_size_m) {

@@ -425,6 +425,7 @@ void write_truth(const RoomOptions& opts, const Layout& layout, const RoomRender
   env["room_layout_start_s"] = started ? start : -1.0;
   env["room_emissions"] = "room_emissions.csv";
   env["room_arrivals"] = "room_arrivals.csv";
+  env["room_imu"] = opts.imu;  // every device had a fake IIO IMU (locus eval: a walker's IMU stayed on its node)
   env["room_jack_xruns"] = jack.xruns();
   env["room_skipped_frames"] = jack.skipped_frames();
   YAML::Emitter em;
@@ -434,6 +435,15 @@ void write_truth(const RoomOptions& opts, const Layout& layout, const RoomRender
   truth.trajectories = "truth.csv";
   for (std::size_t d = 0; d < layout.devices.size(); ++d) {
     const auto& ld = layout.devices[d];
+    if (ld.emitter) {  // a beacon: back under emitters, at its position (its anchor when it had one)
+      scene::EmitterSpec e;
+      e.id = ld.id;
+      e.emits = ld.emits;
+      if (const scene::EmitterSpec* orig = layout.scene.find_emitter(ld.id); orig != nullptr && orig->anchor_position_m)
+        e.anchor_position_m = orig->anchor_position_m;
+      sc.emitters.push_back(e);
+      continue;
+    }
     scene::DeviceSpec spec;
     spec.id = ld.id;
     for (const auto& m : ld.mics_body_m) spec.mics_m.push_back({m.x(), m.y(), m.z()});

@@ -17,22 +17,9 @@ namespace {
 using namespace locus;
 namespace amil = locus::plugins::amil;
 
-class FakeEmitter final : public Emitter {
- public:
-  struct Call {
-    SignalSpec signal;
-    std::uint64_t start_frame;
-    double gain;
-  };
-  bool schedule(const SignalSpec& signal, std::uint64_t start_frame, double gain, std::string*) override {
-    calls.push_back({signal, start_frame, gain});
-    return true;
-  }
-  std::uint64_t playback_frame() const noexcept override { return frame; }
-  double sample_rate_hz() const noexcept override { return 48000.0; }
-  std::uint64_t late_emissions() const noexcept override { return 0; }
-  std::vector<Call> calls;
-  std::uint64_t frame = 1000;
+/// Playback at 48 kHz from frame 1000 (test_host.hpp).
+struct FakeEmitter : test::RecordingEmitter {
+  FakeEmitter() : test::RecordingEmitter(1000, 48000.0) {}
 };
 
 class CollectingPublisher final : public Publisher {

@@ -102,6 +102,25 @@ TEST(RoomRenderer, DirectPathDelayAndSpreadingMatchTheClosedForm) {
   EXPECT_GT(r.clipped(), 0u);
 }
 
+TEST(RoomRenderer, ASpeakerOnlyEmitterIsHeardAsTheClosedForm) {
+  // A beacon: a speaker port at its body origin, no microphones (LayoutDevice::emitter).
+  Layout l = two_devices({1.0, 1.0, 1.0}, {3.1, 1.7, 1.2});
+  l.devices[0].mics_body_m.clear();
+  l.devices[0].speaker_body_m.reset();
+  l.devices[0].emitter = true;
+  RendererConfig cfg;
+  cfg.noise_rms = 0.0;
+  RoomRenderer r(l, cfg);
+  ASSERT_EQ(r.total_mics(), 1u);
+  ASSERT_EQ(r.mic_count(0), 0u);
+  const auto mics = render(r, 0.5);
+  const double dist = (Eigen::Vector3d(3.1, 1.7, 1.2) - Eigen::Vector3d(1.0, 1.0, 1.0)).norm();
+  double peak = 0.0;
+  const double err = max_error(r, mics[0], 1, {{dist, 1.0}}, 0.5, &peak);
+  EXPECT_GT(peak, 0.02);
+  EXPECT_LT(err, 2e-3 * peak);
+}
+
 TEST(RoomRenderer, SkewedMicrophoneIsResampled) {
   const Layout l = two_devices({1.0, 1.0, 1.0}, {2.0, 1.0, 1.0});
   RendererConfig cfg;
@@ -223,6 +242,45 @@ TEST(RoomOptions, MagnetometerNeedsTheLayoutsField) {
   EXPECT_EQ(run_room(o), 2);
   EXPECT_NE(testing::internal::GetCapturedStderr().find("--magnetometer needs the IMUs"), std::string::npos);
   pthread_sigmask(SIG_SETMASK, &mask, nullptr);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(RoomLayout, SoundingEmittersAreSpeakerOnlyDevices) {
+  const auto dir = std::filesystem::temp_directory_path() / ("locus-room-emitters-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "scene.yaml")
+      << "format: locus-scene/1\nname: x\nsample_rate: 44100\nspeed_of_sound: 343\n"
+         "environment: {room: [10, 10, 3]}\ndevices:\n  - id: A\n    mics:\n      - [0, 0, 0]\n"
+         "emitters:\n"
+         "  - id: B1\n    emits:\n      - {type: multitone, tones_hz: [18000, 19000], duration: 0.05, sync_delay_s: 0.05}\n"
+         "    anchor: {position: [1, 2, 2.5]}\n"
+         "  - id: T1\n    emits:\n      - {type: ble, address: 'AA:BB:CC:DD:EE:FF', tx_power_dbm: -59, interval_s: 0.1}\n"
+         "    anchor: {position: [2, 2, 1]}\n"
+         "  - id: M\n    emits:\n      - {type: lfm, f0: 18000, f1: 20000, duration: 0.05}\n"
+         "truth:\n  trajectories: truth.csv\n";
+  std::ofstream(dir / "truth.csv") << "t,id,x,y,z,qw,qx,qy,qz\n0,A,5,1,1,1,0,0,0\n0,M,1,1,1,1,0,0,0\n2,A,5,3,1,1,0,0,0\n"
+                                       "2,M,3,1,1,1,0,0,0\n";
+  const Layout l = load_layout(dir.string());
+  ASSERT_EQ(l.devices.size(), 3u);  // A, B1, M: the BLE tag T1 makes no sound
+  EXPECT_EQ(l.devices[0].id, "A");
+  EXPECT_FALSE(l.devices[0].emitter);
+  EXPECT_EQ(l.devices[1].id, "B1");
+  EXPECT_TRUE(l.devices[1].emitter);
+  EXPECT_TRUE(l.devices[1].mics_body_m.empty());
+  EXPECT_TRUE(l.devices[1].trajectory->is_static());
+  EXPECT_NEAR((l.devices[1].trajectory->pose(1.0).position_m - Eigen::Vector3d(1, 2, 2.5)).norm(), 0.0, 1e-12);
+  EXPECT_EQ(l.devices[1].emits.size(), 1u);
+  EXPECT_EQ(l.devices[2].id, "M");  // a moving emitter follows its truth rows
+  EXPECT_FALSE(l.devices[2].trajectory->is_static());
+  EXPECT_NEAR(l.devices[2].trajectory->pose(2.0).position_m.x(), 3.0, 1e-9);
+  // an emitter with a sound and no position is an error naming it
+  std::ofstream(dir / "truth.csv") << "t,id,x,y,z,qw,qx,qy,qz\n0,A,5,1,1,1,0,0,0\n";
+  try {
+    load_layout(dir.string());
+    FAIL() << "an emitter without a position was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("emitter 'M': no position"), std::string::npos) << e.what();
+  }
   std::filesystem::remove_all(dir);
 }
 

@@ -31,6 +31,9 @@ struct LayoutDevice {
   std::shared_ptr<const sim::Trajectory> trajectory; ///< layout time (truth.csv's t), eased in (below)
   std::vector<double> times_s;                       ///< truth.csv's times of this device (the truth the room writes)
   std::optional<scene::ClockTruth> clock;            ///< the layout's truth clock (its skew is `--skew scene`)
+  /// A scene emitter (a SpyLoc beacon: it plays and records nothing): a speaker port at its body origin,
+  /// no microphones; written back under the run's `emitters:`. Its node's frame clock is the room's.
+  bool emitter = false;
 
   /// Where the sound of this device's speaker port comes from (body frame).
   Eigen::Vector3d speaker_or_origin_m() const { return speaker_body_m.value_or(Eigen::Vector3d::Zero()); }
@@ -65,7 +68,9 @@ class EasedTrajectory final : public sim::Trajectory {
   sim::Pose first_;
 };
 
-/// Reads DIR/scene.yaml and its truth.csv. Every device needs a trajectory (truth rows, or an anchor);
+/// Reads DIR/scene.yaml and its truth.csv. The layout's devices are the scene's devices, then its
+/// emitters that emit sound (an acoustic `emits` entry; BLE tags are not the room's). Every device
+/// and such emitter needs a trajectory (truth rows, or an anchor);
 /// a layout without devices, a device without one, or positions outside `environment.room` are errors
 /// (std::runtime_error naming the file and what was expected; scene::SceneError for format errors).
 /// Every moving device's trajectory is eased in over the first `ease_s` seconds (EasedTrajectory).
