@@ -62,10 +62,26 @@ def main():
     args = parse_args()
     failures = []
     run = ("spyloc", "--seed", str(SEED), "--duration", str(DURATION_S))
-    tries = []
-    hil, r = pass_run(args, run, 240, tries)
-    if r is not None:
-        check_pass(r, tries)
+    # One retry, only when the first attempt failed while the machine, not the live path, was at fault:
+    # the room had xruns (a chopped beep), or MQTT handed the syncs to the walker > 2 ms (median) after
+    # the beacons (c x that is > 0.7 m of range: a loaded broker, not what this test is about). Said.
+    for attempt in (1, 2):
+        tries = []
+        hil, r = pass_run(args, run, 240, tries)
+        if r is not None:
+            check_pass(r, tries)
+        if not tries or attempt == 2 or r is None:
+            break
+        import re
+        import statistics
+        xr = re.search(r"(\d+) xruns", r.get("room") or "")
+        lag = r.get("walker_minus_emitter_arrival_ms") or []
+        lag_ms = statistics.median(lag) if lag else 0.0
+        if not ((xr and int(xr.group(1)) > 0) or lag_ms > 2.0):
+            break
+        print(f"retry: {tries[0]} while the room had {xr.group(1) if xr else 0} xruns and the walker's syncs "
+              f"arrived {lag_ms:.2f} ms (median) after the beacons'; running once more")
+        check_clean(hil, "pass (first attempt)", failures)
     failures += tries
     check_clean(hil, "pass", failures)
     check_interrupt(args, run, 90, 3.0, failures)
