@@ -38,7 +38,8 @@ struct RemoteDevice {
   std::optional<double> offset_s;    ///< its clock minus device 1's, once aligned
   std::deque<double> recent_offsets;
   std::size_t aligned_at = 0;        ///< device 1's exchange count at the last pairing search
-  int undecided = 0;                 ///< searches before the first pairing that found it ambiguous
+  std::size_t aligned_dev_at = 0;    ///< its own exchange count then
+  int undecided = 0;                 ///< searches before the first pairing that decided nothing (too few or ambiguous)
 };
 
 DeviceExchange to_exchange(const ObsMessage& m) {
@@ -288,14 +289,19 @@ class TumLocalizer final : public Localizer {
       if (id == device1_) continue;
       const std::size_t n = std::min(ref.stamps.size(), r.stamps.size());
       if (n == 0 || (!final && ref.stamps.size() < kAlignAfter)) continue;
-      if (r.aligned_at != 0 && ref.stamps.size() < r.aligned_at + (r.offset_s ? kAlignAfter : 1) && !final) continue;
-      if (r.aligned_at != 0 && final && ref.stamps.size() == r.aligned_at) continue;
+      if (r.offset_s) {
+        if (ref.stamps.size() < r.aligned_at + kAlignAfter && !final) continue;
+        if (final && ref.stamps.size() == r.aligned_at) continue;
+      } else if (ref.stamps.size() == r.aligned_at && r.stamps.size() == r.aligned_dev_at) {
+        continue;  // undecided: searched again once either side has another exchange
+      }
       const std::vector<Stamp> rs(ref.stamps.end() - static_cast<std::ptrdiff_t>(std::min(ref.stamps.size(), kAlignSpan)), ref.stamps.end());
       const std::vector<Stamp> ds(r.stamps.end() - static_cast<std::ptrdiff_t>(std::min(r.stamps.size(), kAlignSpan)), r.stamps.end());
       const int m = static_cast<int>(std::min(rs.size(), ds.size()));
       const int need = std::max(2, m / 2);
       const ClockPairing p = align_clocks(rs, ds, tol, interval_tolerance_s(), need, std::max(2, need / 2));
       r.aligned_at = ref.stamps.size();
+      r.aligned_dev_at = r.stamps.size();
       if (!p.offset_s) {
         if (!r.offset_s) ++r.undecided;
         continue;
@@ -559,7 +565,7 @@ class TumLocalizer final : public Localizer {
     if (reporter_)
       for (const auto& [id, r] : remote_)
         if (id != device1_) {
-          const std::string waited = " (" + std::to_string(r.undecided) + " searches before found the recordings ambiguous)";
+          const std::string waited = " (" + std::to_string(r.undecided) + " searches before decided nothing: too few or ambiguous)";
           if (r.offset_s)
             log_->info("tum: recordings pair " + id + "'s audio clock at " + std::to_string(*r.offset_s) + " s from " + device1_ + "'s" + waited);
           else
