@@ -223,7 +223,7 @@ ExchangeResult solve_exchange(const std::vector<DeviceExchange>& devices, const 
 Stamp stamp_of(const DeviceExchange& d) { return Stamp{mean_finite(d.t1_s), mean_finite(d.t2_s)}; }
 
 int match_stamp(const Stamp& r, const std::vector<Stamp>& dev, double offset_s, double tolerance_s,
-                double interval_tolerance_s) {
+                double interval_tolerance_s, double interval_diff_s) {
   int best = -1;
   double best_err = std::numeric_limits<double>::infinity();
   const bool r1 = std::isfinite(r.t1), r2 = std::isfinite(r.t2);
@@ -234,41 +234,88 @@ int match_stamp(const Stamp& r, const std::vector<Stamp>& dev, double offset_s, 
     else if (r2 && std::isfinite(d.t2)) err = std::abs(d.t2 - r.t2 - offset_s);
     else continue;
     if (err > tolerance_s) continue;
-    if (r1 && r2 && std::isfinite(d.t1) && std::isfinite(d.t2) &&
-        std::abs((d.t2 - d.t1) - (r.t2 - r.t1)) > interval_tolerance_s)
-      continue;
+    if (r1 && r2 && std::isfinite(d.t1) && std::isfinite(d.t2)) {
+      const double diff = (d.t2 - d.t1) - (r.t2 - r.t1);
+      if (std::abs(diff) > interval_tolerance_s) continue;
+      if (std::isfinite(interval_diff_s) && std::abs(diff - interval_diff_s) > tolerance_s) continue;
+    }
     if (err < best_err) best = static_cast<int>(j), best_err = err;
   }
   return best;
 }
 
-std::optional<double> align_clocks(const std::vector<Stamp>& ref, const std::vector<Stamp>& dev, double tolerance_s,
-                                   double interval_tolerance_s, int min_pairs, int* pairs) {
-  int best_n = 0;
-  double best_spread = std::numeric_limits<double>::infinity();
-  double best_offset = 0.0;
+namespace {
+
+bool both_tones(const Stamp& s) { return std::isfinite(s.t1) && std::isfinite(s.t2); }
+
+/// One candidate's agreement: how many of ref's exchanges pair, their tone-1 residuals' sum and square sum.
+struct Agreement {
+  int n = 0;
+  double sum = 0.0, sq = 0.0;
+};
+
+Agreement agreement(const std::vector<Stamp>& ref, const std::vector<Stamp>& dev, double offset_s, double interval_diff_s,
+                    double tolerance_s, double interval_tolerance_s) {
+  Agreement a;
+  for (const Stamp& rr : ref) {
+    const int j = match_stamp(rr, dev, offset_s, tolerance_s, interval_tolerance_s, interval_diff_s);
+    if (j < 0) continue;
+    ++a.n;
+    const double e = dev[static_cast<std::size_t>(j)].t1 - rr.t1 - offset_s;
+    if (std::isfinite(e)) a.sq += e * e, a.sum += e;
+  }
+  return a;
+}
+
+/// Calls f(offset, interval difference) for every candidate: a pair of exchanges that heard both tones
+/// and whose intervals agree within `interval_tolerance_s`.
+template <class F>
+void for_each_candidate(const std::vector<Stamp>& ref, const std::vector<Stamp>& dev, double interval_tolerance_s, F&& f) {
   for (const Stamp& r : ref) {
-    if (!std::isfinite(r.t1)) continue;
+    if (!both_tones(r)) continue;
     for (const Stamp& d : dev) {
-      if (!std::isfinite(d.t1)) continue;
-      const double o = d.t1 - r.t1;
-      int n = 0;
-      double spread = 0.0, sum = 0.0;
-      for (const Stamp& rr : ref) {
-        const int j = match_stamp(rr, dev, o, tolerance_s, interval_tolerance_s);
-        if (j < 0) continue;
-        ++n;
-        const double e = dev[static_cast<std::size_t>(j)].t1 - rr.t1 - o;
-        if (std::isfinite(e)) spread += e * e, sum += e;
-      }
-      if (n > best_n || (n == best_n && spread < best_spread)) {
-        best_n = n, best_spread = spread, best_offset = o + (n ? sum / n : 0.0);
-      }
+      if (!both_tones(d)) continue;
+      const double diff = (d.t2 - d.t1) - (r.t2 - r.t1);
+      if (std::abs(diff) <= interval_tolerance_s) f(d.t1 - r.t1, diff);
     }
   }
-  if (pairs) *pairs = best_n;
-  if (best_n < min_pairs) return std::nullopt;
-  return best_offset;
+}
+
+}  // namespace
+
+ClockPairing align_clocks(const std::vector<Stamp>& ref, const std::vector<Stamp>& dev, double tolerance_s,
+                          double interval_tolerance_s, int min_pairs, int min_margin) {
+  struct Candidate {
+    double offset_s;
+    Agreement a;
+  };
+  std::vector<Candidate> candidates;
+  for_each_candidate(ref, dev, interval_tolerance_s, [&](double o, double diff) {
+    candidates.push_back({o, agreement(ref, dev, o, diff, tolerance_s, interval_tolerance_s)});
+  });
+  ClockPairing out;
+  const Candidate* best = nullptr;
+  for (const Candidate& c : candidates)
+    if (best == nullptr || c.a.n > best->a.n || (c.a.n == best->a.n && c.a.sq < best->a.sq)) best = &c;
+  if (best == nullptr) return out;
+  out.pairs = best->a.n;
+  // Another round: tone-1 offsets of one round differ by at most the propagation over the spread.
+  for (const Candidate& c : candidates)
+    if (std::abs(c.offset_s - best->offset_s) > interval_tolerance_s && c.a.n > out.runner_up_pairs)
+      out.runner_up_pairs = c.a.n, out.runner_up_offset_s = c.offset_s;
+  if (out.pairs < min_pairs || out.pairs - out.runner_up_pairs < min_margin) return out;
+  out.offset_s = best->offset_s + (best->a.n ? best->a.sum / best->a.n : 0.0);
+  return out;
+}
+
+int count_pairs(const std::vector<Stamp>& ref, const std::vector<Stamp>& dev, double offset_s, double tolerance_s,
+                double interval_tolerance_s) {
+  int best = 0;
+  for_each_candidate(ref, dev, interval_tolerance_s, [&](double o, double diff) {
+    if (std::abs(o - offset_s) <= tolerance_s)
+      best = std::max(best, agreement(ref, dev, offset_s, diff, tolerance_s, interval_tolerance_s).n);
+  });
+  return best;
 }
 
 std::optional<double> speed_of_sound_sample(const DeviceExchange& d, const std::vector<double>& t_own, double min_baseline_m) {

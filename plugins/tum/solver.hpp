@@ -23,6 +23,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -101,14 +102,37 @@ struct Stamp {
 };
 Stamp stamp_of(const DeviceExchange& d);
 
-/// The clock offset (device - reference, s) that pairs the most exchanges: a pair agrees when the
-/// tone-1 times differ by the offset within `tolerance_s` and the tone intervals (t2 - t1) agree within
-/// `interval_tolerance_s` (the two arrivals' path difference, at most the devices' spread / c).
-/// nullopt when fewer than `min_pairs` agree.
-std::optional<double> align_clocks(const std::vector<Stamp>& ref, const std::vector<Stamp>& dev, double tolerance_s,
-                                   double interval_tolerance_s, int min_pairs, int* pairs = nullptr);
-/// The index of dev's exchange that pairs with `r` under `offset_s`, -1 when none.
+/// The index of dev's exchange that pairs with `r` under `offset_s`, -1 when none: tone-1 times differ
+/// by the offset within `tolerance_s` (tone 2 when tone 1 is missing on either side) and, when both
+/// heard both tones, the intervals (t2 - t1) differ by at most `interval_tolerance_s` (the two arrivals'
+/// path difference, at most twice the devices' spread / c) and, when `interval_diff_s` is finite, by
+/// `interval_diff_s` within `tolerance_s` (the path difference of a pairing changes only with motion).
 int match_stamp(const Stamp& r, const std::vector<Stamp>& dev, double offset_s, double tolerance_s,
+                double interval_tolerance_s, double interval_diff_s = std::numeric_limits<double>::quiet_NaN());
+
+/// A clock pairing search (align_clocks).
+struct ClockPairing {
+  std::optional<double> offset_s;  ///< device - reference (s); nullopt: too few agree, or ambiguous
+  int pairs = 0;                   ///< exchanges that agree under the best offset
+  int runner_up_pairs = 0;         ///< under the best offset of another round (> interval_tolerance_s away)
+  double runner_up_offset_s = std::numeric_limits<double>::quiet_NaN();
+};
+
+/// The clock offset (device - reference, s) that pairs the most exchanges. A candidate is one pair of
+/// exchanges (both tones heard on both sides): its tone-1 offset and its interval difference
+/// (d.t2 - d.t1) - (r.t2 - r.t1); an exchange agrees when match_stamp pairs it under both. Tone 1 comes
+/// from device 1 on a fixed period, so the tone-1 times alone agree under every whole-period shift; the
+/// interval difference is the geometry's (constant but for motion) under the right round and the
+/// difference of two rounds' pseudo-random tone-2 delays under a wrong one, which is what tells them
+/// apart. No offset (nullopt, with the counts) when fewer than `min_pairs` agree or the best does not
+/// beat the best offset of another round (the runner-up) by `min_margin` exchanges: a device whose
+/// exchanges lag device 1's by one pairs as many under a one-period shift when the intervals do not
+/// tell the rounds apart (measured live, `./run hil tum`: both monitors paired 333 ms off).
+ClockPairing align_clocks(const std::vector<Stamp>& ref, const std::vector<Stamp>& dev, double tolerance_s,
+                          double interval_tolerance_s, int min_pairs, int min_margin = 1);
+
+/// How many of ref's exchanges pair under `offset_s` (align_clocks' count, its best interval difference).
+int count_pairs(const std::vector<Stamp>& ref, const std::vector<Stamp>& dev, double offset_s, double tolerance_s,
                 double interval_tolerance_s);
 
 /// Speed of sound from a device's own emission: its mics sit at known, different distances from its

@@ -38,6 +38,8 @@ struct RemoteDevice {
   std::optional<double> offset_s;    ///< its clock minus device 1's, once aligned
   std::deque<double> recent_offsets;
   std::size_t aligned_at = 0;        ///< device 1's exchange count at the last pairing search
+  std::size_t aligned_dev_at = 0;    ///< its own exchange count then
+  int undecided = 0;                 ///< searches before the first pairing that decided nothing (too few or ambiguous)
 };
 
 DeviceExchange to_exchange(const ObsMessage& m) {
@@ -278,31 +280,38 @@ class TumLocalizer final : public Localizer {
     // devices' motion over the propagation (a few ms at walking speed), while a wrong pairing is off by
     // a round period plus the random speaker latencies: a tight tolerance tells them apart.
     const double tol = pairing_tolerance_s_;
-    // Clock pairing: first after kAlignAfter exchanges (fewer let a wrong round shift tie with the
-    // right one), then again every kAlignAfter exchanges over the latest ones, switching when another
-    // offset pairs more of them.
+    // Clock pairing: first after kAlignAfter exchanges, and only when the best offset beats every other
+    // round's by a margin (a device whose exchanges lag device 1's by one pairs as many under a
+    // one-period shift when the intervals do not tell the rounds apart); then again every kAlignAfter
+    // exchanges over the latest ones, switching when another offset pairs clearly more of them.
     constexpr std::size_t kAlignAfter = 6, kAlignSpan = 30;
     for (auto& [id, r] : remote_) {
       if (id == device1_) continue;
       const std::size_t n = std::min(ref.stamps.size(), r.stamps.size());
       if (n == 0 || (!final && ref.stamps.size() < kAlignAfter)) continue;
-      if (r.offset_s && ref.stamps.size() < r.aligned_at + kAlignAfter && !final) continue;
-      if (r.offset_s && final && ref.stamps.size() == r.aligned_at) continue;
+      if (r.offset_s) {
+        if (ref.stamps.size() < r.aligned_at + kAlignAfter && !final) continue;
+        if (final && ref.stamps.size() == r.aligned_at) continue;
+      } else if (ref.stamps.size() == r.aligned_at && r.stamps.size() == r.aligned_dev_at) {
+        continue;  // undecided: searched again once either side has another exchange
+      }
       const std::vector<Stamp> rs(ref.stamps.end() - static_cast<std::ptrdiff_t>(std::min(ref.stamps.size(), kAlignSpan)), ref.stamps.end());
       const std::vector<Stamp> ds(r.stamps.end() - static_cast<std::ptrdiff_t>(std::min(r.stamps.size(), kAlignSpan)), r.stamps.end());
-      int pairs = 0;
-      const int need = std::max(2, static_cast<int>(std::min(rs.size(), ds.size()) / 2));
-      const auto off = align_clocks(rs, ds, tol, interval_tolerance_s(), need, &pairs);
+      const int m = static_cast<int>(std::min(rs.size(), ds.size()));
+      const int need = std::max(2, m / 2);
+      const ClockPairing p = align_clocks(rs, ds, tol, interval_tolerance_s(), need, std::max(2, need / 2));
       r.aligned_at = ref.stamps.size();
-      if (!off) continue;
-      if (r.offset_s && std::abs(*off - *r.offset_s) < tol) continue;  // the same offset
-      int current = 0;
-      if (r.offset_s)
-        for (const Stamp& st : rs) current += match_stamp(st, ds, *r.offset_s, tol, interval_tolerance_s()) >= 0;
-      if (!r.offset_s || (pairs > current + 2 && 2 * pairs > static_cast<int>(std::min(rs.size(), ds.size())))) {
-        if (r.offset_s) log_->info("tum: " + id + ": clock pairing moved to another offset (" + std::to_string(pairs) + " vs " +
+      r.aligned_dev_at = r.stamps.size();
+      if (!p.offset_s) {
+        if (!r.offset_s) ++r.undecided;
+        continue;
+      }
+      if (r.offset_s && std::abs(*p.offset_s - *r.offset_s) < tol) continue;  // the same offset
+      const int current = r.offset_s ? count_pairs(rs, ds, *r.offset_s, tol, interval_tolerance_s()) : 0;
+      if (!r.offset_s || (p.pairs > current + 2 && 2 * p.pairs > m)) {
+        if (r.offset_s) log_->info("tum: " + id + ": clock pairing moved to another offset (" + std::to_string(p.pairs) + " vs " +
                                    std::to_string(current) + " exchanges agree)");
-        r.offset_s = off;
+        r.offset_s = p.offset_s;
         r.recent_offsets.clear();
       }
     }
@@ -555,8 +564,13 @@ class TumLocalizer final : public Localizer {
                  std::to_string(emitter_->late_emissions()) + " late");
     if (reporter_)
       for (const auto& [id, r] : remote_)
-        if (id != device1_ && r.offset_s)
-          log_->info("tum: recordings pair " + id + "'s audio clock at " + std::to_string(*r.offset_s) + " s from " + device1_ + "'s");
+        if (id != device1_) {
+          const std::string waited = " (" + std::to_string(r.undecided) + " searches before decided nothing: too few or ambiguous)";
+          if (r.offset_s)
+            log_->info("tum: recordings pair " + id + "'s audio clock at " + std::to_string(*r.offset_s) + " s from " + device1_ + "'s" + waited);
+          else
+            log_->warn("tum: the recordings never paired " + id + "'s audio clock with " + device1_ + "'s" + waited);
+        }
   }
 
   void note_failure(const std::string& why) {

@@ -10,6 +10,7 @@
 #include "tum/messages.hpp"
 #include "tum/network.hpp"
 #include "tum/solver.hpp"
+#include "tum/sync.hpp"
 #include "tum/tracker.hpp"
 #include "support/tum_synthetic.hpp"
 
@@ -69,13 +70,71 @@ TEST(TumSolver, ClockPairingFindsTheOffset) {
     ref.push_back(tum::stamp_of(ex[0]));
     if (k >= 2) dev.push_back(tum::stamp_of(ex[2]));  // the monitor missed the first two
   }
-  int pairs = 0;
-  const auto off = tum::align_clocks(ref, dev, 5.0 / kC + 0.005, 2.0 * 5.0 / kC + 0.002, 3, &pairs);
-  ASSERT_TRUE(off.has_value());
+  const auto p = tum::align_clocks(ref, dev, 5.0 / kC + 0.005, 2.0 * 5.0 / kC + 0.002, 3);
+  ASSERT_TRUE(p.offset_s.has_value());
+  const auto off = p.offset_s;
   EXPECT_NEAR(*off, poses[2].clock_offset_s - poses[0].clock_offset_s, 0.02);
-  EXPECT_EQ(pairs, 8);
+  EXPECT_EQ(p.pairs, 8);
   EXPECT_EQ(tum::match_stamp(ref[2], dev, *off, 5.0 / kC + 0.005, 2.0 * 5.0 / kC + 0.002), 0);
   EXPECT_EQ(tum::match_stamp(ref[0], dev, *off, 5.0 / kC + 0.005, 2.0 * 5.0 / kC + 0.002), -1);
+}
+
+// Live (`./run hil tum`), device 1's tone comes on an exact period and device 2's a pseudo-random
+// 0.11-0.16 s later (tone2_delay_s). A monitor whose exchanges lag device 1's by one pairs as many of
+// them under a one-period shift (its exchange k with device 1's k+1): the tone-1 times agree under
+// every shift, and the interval bound (twice the spread / c: 31 ms at 5 m) passes most differences of
+// two rounds' delays. Measured live: both monitors paired 333 ms off, 1 run in 3. What tells the rounds
+// apart is that under the right pairing the interval difference is the geometry's, the same in every
+// exchange.
+static void live_rounds(const std::vector<Pose>& poses, int first, int count, double jitter_s, double noise_s, unsigned seed,
+                        std::vector<tum::Stamp>& ref, std::vector<tum::Stamp>& dev) {
+  std::mt19937_64 rng(seed);
+  for (int k = first; k < first + count; ++k) {
+    const double t1 = 1.0 + k / 3.0;
+    const auto ex = exchange(poses, t1, t1 + tum::tone2_delay_s(0.11, jitter_s, k), noise_s, &rng);
+    ref.push_back(tum::stamp_of(ex[0]));
+    if (k < first + count - 1) dev.push_back(tum::stamp_of(ex[2]));  // its last exchange not in yet
+  }
+}
+
+TEST(TumSolver, ClockPairingTellsLiveRoundsApart) {
+  const auto poses = layout();
+  const double tol = 0.006, itol = 2.0 * 5.0 / kC + 0.002;  // the shipped pairing_tolerance_s, max_spread_m
+  for (unsigned seed = 1; seed <= 20; ++seed) {
+    // Rounds 22-27: every neighbouring pair of tone-2 delays differs by less than 13 ms.
+    std::vector<tum::Stamp> ref, dev;
+    live_rounds(poses, 22, 6, 0.05, 20e-6, seed, ref, dev);
+    const double right = dev[0].t1 - ref[0].t1, wrong = dev[0].t1 - ref[1].t1;
+    int by_bound_right = 0, by_bound_wrong = 0;  // the tone-1 times and the interval bound alone
+    for (const auto& r : ref) {
+      by_bound_right += tum::match_stamp(r, dev, right, tol, itol) >= 0;
+      by_bound_wrong += tum::match_stamp(r, dev, wrong, tol, itol) >= 0;
+    }
+    ASSERT_EQ(by_bound_right, 5);
+    ASSERT_EQ(by_bound_wrong, 5) << "the one-period shift ties under the bound alone";
+    const auto p = tum::align_clocks(ref, dev, tol, itol, 3, 2);
+    ASSERT_TRUE(p.offset_s.has_value()) << "seed " << seed << ": " << p.pairs << " vs " << p.runner_up_pairs;
+    EXPECT_NEAR(*p.offset_s, right, 2e-4) << "seed " << seed;
+    EXPECT_EQ(p.pairs, 5);
+    EXPECT_LE(p.runner_up_pairs, 3) << "seed " << seed;
+    EXPECT_EQ(tum::count_pairs(ref, dev, right, tol, itol), 5);
+    EXPECT_LE(tum::count_pairs(ref, dev, wrong, tol, itol), 3) << "seed " << seed << ": a re-check sees the shift";
+  }
+}
+
+TEST(TumSolver, ClockPairingRefusesIndistinctRounds) {
+  // A constant interval (no jitter): every round looks alike and the lagging monitor pairs as many
+  // under the one-period shift, so there is no offset to decide on.
+  const auto poses = layout();
+  const double tol = 0.006, itol = 2.0 * 5.0 / kC + 0.002;
+  std::vector<tum::Stamp> ref, dev;
+  live_rounds(poses, 0, 6, 0.0, 0.0, 1, ref, dev);
+  const auto p = tum::align_clocks(ref, dev, tol, itol, 3, 2);
+  EXPECT_FALSE(p.offset_s.has_value());
+  EXPECT_EQ(p.pairs, 5);
+  EXPECT_EQ(p.runner_up_pairs, 5);
+  const double right = dev[0].t1 - ref[0].t1, wrong = dev[0].t1 - ref[1].t1;
+  EXPECT_LT(std::min(std::abs(p.runner_up_offset_s - right), std::abs(p.runner_up_offset_s - wrong)), 1e-6);
 }
 
 // 15 still exchanges (timing noise 2 us, random latency of device 2's tone) through the window solve.
