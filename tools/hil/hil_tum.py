@@ -35,8 +35,8 @@ import time
 
 import yaml
 
-from hil_common import (Failure, check_alive, read_jsonl, sample_peaks, start_map_node, start_room, stop_nodes, stop_room,
-                        wait_for)
+from hil_common import (Failure, check_alive, family_layout, read_jsonl, sample_peaks, start_map_node, start_room,
+                        stop_nodes, stop_room, wait_for)
 from map_measure import cpu_s
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -46,39 +46,31 @@ SIM_FIELD_UT = [12.1, 14.6, -44.0]  # the simulator's field (locus simulate tum 
 
 def layout_for(args, locus, out):
     """The layout: simulated, or --scene (its scene.yaml and truth.csv copied; a missing magnetic field
-    added). (dir, scene dict, note about the field or None)."""
+    added). (dir, scene dict, the recordings' dir, note about the field or None)."""
+    if args.scene and not os.path.isfile(os.path.join(args.scene, "scene.yaml")):
+        raise Failure(f"--scene {args.scene}: no scene.yaml there")
+    src, scene = family_layout(locus, "tum", out, args.seed, args.scene,
+                               extra=("-o", "overlap=1", "-o", f"track={args.track}"))
+    if not args.scene:
+        return src, scene, src, None
+    if (scene.get("environment") or {}).get("family") != "tum":
+        raise Failure(f"--scene {args.scene}: environment.family is {(scene.get('environment') or {}).get('family')!r}, "
+                      "expected 'tum'")
+    if (scene.get("truth") or {}).get("magnetic_field_world") is not None:
+        return src, scene, src, None
+    # The room's magnetometers need a field; the scene's recording had its own (unknown) one.
     layout = os.path.join(out, "layout")
-    note = None
-    if args.scene:
-        src = os.path.abspath(args.scene)
-        if not os.path.isfile(os.path.join(src, "scene.yaml")):
-            raise Failure(f"--scene {args.scene}: no scene.yaml there")
-        with open(os.path.join(src, "scene.yaml")) as f:
-            scene = yaml.safe_load(f)
-        if (scene.get("environment") or {}).get("family") != "tum":
-            raise Failure(f"--scene {args.scene}: environment.family is {(scene.get('environment') or {}).get('family')!r}, "
-                          "expected 'tum'")
-        if (scene.get("truth") or {}).get("magnetic_field_world") is None:
-            # The room's magnetometers need a field; the scene's recording had its own (unknown) one.
-            os.makedirs(layout, exist_ok=True)
-            shutil.copy(os.path.join(src, scene["truth"]["trajectories"]), layout)
-            scene["truth"]["magnetic_field_world"] = SIM_FIELD_UT
-            for d in scene["devices"]:  # the recordings stay with the original (the replay reads them there)
-                for stream in ("audio", "imu", "ble", "sync"):
-                    d.pop(stream, None)
-            with open(os.path.join(layout, "scene.yaml"), "w") as f:
-                yaml.safe_dump(scene, f, sort_keys=False)
-            note = (f"{args.scene} has no truth.magnetic_field_world: the room's magnetometers read the simulator's "
-                    f"{SIM_FIELD_UT} uT (its recording's own field and hard iron are not reproduced)")
-            return layout, scene, src, note
-        return src, scene, src, note
-    cmd = [locus, "simulate", "tum", layout, "--seed", str(args.seed), "-o", "overlap=1", "-o", f"track={args.track}", "-q"]
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    if r.returncode != 0:
-        raise Failure(f"{' '.join(cmd)} failed: {r.stderr}")
-    with open(os.path.join(layout, "scene.yaml")) as f:
-        scene = yaml.safe_load(f)
-    return layout, scene, layout, note
+    os.makedirs(layout, exist_ok=True)
+    shutil.copy(os.path.join(src, scene["truth"]["trajectories"]), layout)
+    scene["truth"]["magnetic_field_world"] = SIM_FIELD_UT
+    for d in scene["devices"]:  # the recordings stay with the original (the replay reads them there)
+        for stream in ("audio", "imu", "ble", "sync"):
+            d.pop(stream, None)
+    with open(os.path.join(layout, "scene.yaml"), "w") as f:
+        yaml.safe_dump(scene, f, sort_keys=False)
+    note = (f"{args.scene} has no truth.magnetic_field_world: the room's magnetometers read the simulator's "
+            f"{SIM_FIELD_UT} uT (its recording's own field and hard iron are not reproduced)")
+    return layout, scene, src, note
 
 
 def node_config(template, dev, server, mqtt_port, room_out, out_jsonl, n_devices, emitters):
