@@ -165,7 +165,10 @@ class MontageLocalizer final : public Localizer {
     if (formation_) process(out, false);
   }
 
-  /// [main]
+  /// [main] All inputs ended: the rounds still open go to the reporter before any node finishes.
+  void inputs_ended(Publisher& /*out*/) override { close_rounds(true); }
+
+  /// [main] All inputs ended, every node's last round delivered.
   void finish(Publisher& out) override {
     close_rounds(true);
     if (formation_) process(out, true);

@@ -183,7 +183,10 @@ class TumLocalizer final : public Localizer {
     if (reporter_) process(out, false);
   }
 
-  /// [main] All inputs ended.
+  /// [main] All inputs ended: the exchanges still open go to the reporter before any node finishes.
+  void inputs_ended(Publisher& /*out*/) override { close_exchanges(kInf); }
+
+  /// [main] All inputs ended, every node's last exchange delivered.
   void finish(Publisher& out) override {
     if (live_) log_live_summary();
     close_exchanges(kInf);

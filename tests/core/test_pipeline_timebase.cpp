@@ -277,6 +277,11 @@ TEST(PipelineTimebase, RealtimeSynthSourcePutsMonotonicStampsOnItsFrameClock) {
   synth.start(ring);
   std::vector<double> produced_s;  // frames produced / fs when each stamp was taken
   std::thread producer([&] {
+    // Before the first frame the stream has no origin yet and a stamp may precede it (a loaded machine
+    // starts the synth thread late): the stamps are taken once frames flow.
+    const auto first_frame_deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (synth.frames_produced() == 0 && std::chrono::steady_clock::now() < first_frame_deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
     for (int i = 0; i < 20; ++i) {
       std::this_thread::sleep_for(std::chrono::milliseconds(i == 0 ? 0 : 50));
       const double p = static_cast<double>(synth.frames_produced()) / fs;

@@ -243,7 +243,11 @@ int run_replay(const ReplayOptions& opts) {
   };
   for (auto& p : nodes) p->stop_inputs();
   settle();
-  // Phase (b): localizers finish node by node, the link settling after each.
+  // Phase (b): every node's localizers hand their peers what they held back (inputs_ended), the link
+  // settles; so a node that finishes first still sees the last messages of the nodes after it.
+  for (auto& p : nodes) p->end_localizer_inputs();
+  settle();
+  // Phase (c): localizers finish node by node, the link settling after each.
   for (auto& p : nodes) {
     p->finish_localizers();
     settle();

@@ -26,7 +26,13 @@ class Localizer {
   /// [main] One event of a subscribed type, from any device of this node.
   virtual void on_event(const Event& event, Publisher& out) = 0;
 
-  /// [main] All inputs ended: publish final estimates.
+  /// [main] Every input of this node ended, and (replay) every other node's too: hand the peers what is
+  /// still held back for them (link messages waiting for a window to close). Called on every node that
+  /// shares the link before any node's finish(), with the link settled in between, so that a peer's
+  /// finish() sees the last messages of every node whatever order the nodes finish in.
+  virtual void inputs_ended(Publisher& /*out*/) {}
+
+  /// [main] All inputs ended and the peers' last link messages delivered: publish final estimates.
   virtual void finish(Publisher& /*out*/) {}
 };
 

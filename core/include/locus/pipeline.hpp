@@ -229,7 +229,8 @@ class Pipeline {
   /// [any] True when every finite source has ended and its frames went through the detectors.
   bool finished() const noexcept;
   /// [main] Orderly shutdown; idempotent. Everything accepted so far reaches the sinks.
-  /// Same as stop_inputs(); settle (own link only); finish_localizers(); settle; flush().
+  /// Same as stop_inputs(); settle (own link only); end_localizer_inputs(); settle; finish_localizers();
+  /// settle; flush().
   void stop();
 
   // The shutdown phases, for embedders that share a link between pipelines (replay):
@@ -240,7 +241,11 @@ class Pipeline {
   /// [main, after stop_inputs()] Delivers what is queued on the bus now (link messages re-posted by the
   /// link, events localizers published). Returns the number of items delivered.
   std::size_t deliver_pending();
-  /// [main, after stop_inputs()] Calls every localizer's finish() once (later calls do nothing).
+  /// [main, after stop_inputs()] Calls every localizer's inputs_ended() once (later calls do nothing).
+  /// An embedder sharing a link calls it on every pipeline, settles the link, then finish_localizers().
+  void end_localizer_inputs();
+  /// [main, after stop_inputs()] Calls every localizer's finish() once (later calls do nothing); calls
+  /// end_localizer_inputs() first if it was not.
   void finish_localizers();
   /// [main] Logs the device statistics and flushes the pipeline's own writer (if any); once.
   void flush();
@@ -286,6 +291,7 @@ class Pipeline {
   bool started_ = false;
   bool inputs_stopped_ = false;
   bool localizers_finished_ = false;
+  bool localizer_inputs_ended_ = false;
   bool flushed_ = false;
   bool stopped_ = false;
 };

@@ -366,8 +366,15 @@ std::size_t Pipeline::deliver_pending() {
   return total;
 }
 
+void Pipeline::end_localizer_inputs() {
+  if (localizer_inputs_ended_) return;
+  localizer_inputs_ended_ = true;
+  for (auto& inst : localizers_) inst->localizer->inputs_ended(*publisher_);
+}
+
 void Pipeline::finish_localizers() {
   if (localizers_finished_) return;
+  end_localizer_inputs();
   localizers_finished_ = true;
   for (auto& inst : localizers_) inst->localizer->finish(*publisher_);
 }
@@ -414,6 +421,8 @@ void Pipeline::stop() {
   if (stopped_) return;
   stopped_ = true;
   stop_inputs();
+  settle();
+  end_localizer_inputs();
   settle();
   finish_localizers();
   settle();

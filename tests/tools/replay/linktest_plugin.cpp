@@ -9,7 +9,10 @@
 //     (target "summary", position = [remote detections, local detections, done messages received]),
 //     with `reference` = its device and the mic count of its geometry in std_m (checks HostContext);
 //   - the publisher also reports its own geometry at finish() (target "geometry": speaker position,
-//     confidence 1 when its emits hold the scene's lfm entry, mic count in std_m).
+//     confidence 1 when its emits hold the scene's lfm entry, mic count in std_m);
+//   - every node publishes its device on linktest/ended from inputs_ended(), and the publisher reports
+//     at finish() how many other nodes' such messages it had (target "ended", distance_m): the replay
+//     calls every node's inputs_ended() before the first finish(), so A, which finishes first, has B's.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -33,6 +36,8 @@ class LinkTest final : public Localizer {
     mics_ = ctx.geometry != nullptr ? static_cast<int>(ctx.geometry->mic_count) : -1;
     if (device_ != publisher_) {
       link_->subscribe("linktest/#", [this](const LinkMessage& m) { on_link(m); });
+    } else {
+      link_->subscribe("linktest/ended", [this](const LinkMessage& m) { ended_ += m.payload != device_; });
     }
   }
   std::vector<EventType> subscriptions() const override { return {EventType::AudioDetection}; }
@@ -47,8 +52,16 @@ class LinkTest final : public Localizer {
       link_->publish("linktest/detection", buf);
     }
   }
+  void inputs_ended(Publisher&) override { link_->publish("linktest/ended", device_); }
   void finish(Publisher& out) override {
     if (device_ == publisher_) {
+      Estimate ended;
+      ended.plugin = "linktest";
+      ended.reference = std::string_view(device_);
+      ended.frame = "test";
+      ended.target = "ended";
+      ended.distance_m = ended_;
+      out.publish(ended);
       link_->publish("linktest/done", std::to_string(local_));
       // What this node knows of its own geometry: the speaker position and its emits entries.
       Estimate g;
@@ -81,6 +94,7 @@ class LinkTest final : public Localizer {
 
  private:
   void on_link(const LinkMessage& m) {
+    if (m.topic == "linktest/ended") return;
     if (m.topic == "linktest/done") {
       ++done_;
       return;
@@ -111,7 +125,7 @@ class LinkTest final : public Localizer {
   Link* link_ = nullptr;
   const DeviceGeometry* geometry_ = nullptr;
   int mics_ = -1;
-  int local_ = 0, remote_ = 0, done_ = 0;
+  int local_ = 0, remote_ = 0, done_ = 0, ended_ = 0;
   std::vector<double> pending_, locals_;  // paired at finish(): remote and local order is not fixed
   std::vector<Estimate> estimates_;
 };

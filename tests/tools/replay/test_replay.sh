@@ -4,7 +4,8 @@
 #   1. onset on every device (config/replay-onset.yaml, template "*"): both devices' detections;
 #   2. the linktest localizer (a .so fixture) publishes A's detections over the shared link and B pairs
 #      them with its own: 3 estimates at ~1.715 m, and a summary that proves A's finish() message
-#      reached B before B finished (the two shutdown phases), and that B saw its geometry (2 mics);
+#      reached B before B finished (the shutdown phases), that B's inputs_ended() message reached A
+#      before A finished, and that B saw its geometry (2 mics);
 #   3. --speed realtime takes about real time;
 #   4. a bad config and a bad scene exit 2 with file:line:column; a malformed imu.csv row exits 1,
 #      naming the file:line:column, after flushing the estimates.
@@ -78,6 +79,9 @@ if summary:
     s = summary[0]["position_m"]
     expect(s == [3, 3, 1], f"summary remote/local/done = {s} (A's finish() reached B before B finished)")
     expect(summary[0]["std_m"] == 2, f"B's geometry has 2 mics (got {summary[0]['std_m']})")
+ended = [e for e in est if e["target"] == "ended"]
+expect(len(ended) == 1 and ended[0]["reference"] == "A" and ended[0]["distance_m"] == 1,
+       f"A, finishing first, had B's inputs_ended() message (the phase before finish): {ended}")
 geo = [e for e in est if e["target"] == "geometry"]
 expect(len(geo) == 1 and geo[0]["reference"] == "A" and geo[0]["confidence"] == 1 and geo[0]["std_m"] == 1,
        f"A's geometry reached its localizer (speaker, emits, 1 mic): {geo}")
