@@ -402,12 +402,16 @@ void Formation::adjust(std::size_t k) {
         const double ed = std::remainder(delta_[u] - psi_ - *prior, 2.0 * std::numbers::pi);
         if (!fixed) {
           H(cd, cd) += w;
-          H(cd, pcol_psi) -= w;
-          H(pcol_psi, cd) -= w;
           g(cd) += w * ed;
         }
-        H(pcol_psi, pcol_psi) += w;
-        g(pcol_psi) -= w * ed;
+        if (cfg_.shared_frame_rotation) {  // else ψ stays 0: the origin's prior is taken as exact
+          if (!fixed) {
+            H(cd, pcol_psi) -= w;
+            H(pcol_psi, cd) -= w;
+          }
+          H(pcol_psi, pcol_psi) += w;
+          g(pcol_psi) -= w * ed;
+        }
       } else if (!fixed) {
         H(cd, cd) += 1.0 / (std::numbers::pi * std::numbers::pi);
       }

@@ -93,6 +93,11 @@ struct FormationConfig {
   double max_closure_m = 1.5;        ///< a triangle / two-neighbour placement closing worse is refused
   int window_rounds = 30;            ///< rounds adjusted together (older ones are fixed)
   int iterations = 8;                ///< Gauss-Newton iterations per solve
+  /// The frame's rotation from the world (ψ) estimated from every user's offset prior (true), or
+  /// taken from the origin's prior alone (false: ψ = 0, the origin's prior error biases every other
+  /// δ). Off by default: better on the synthetic walks and the held-out simulator seeds 21-30, worse
+  /// on the foreign montage-103 (docs/montage.md, "The maths": the gauge).
+  bool shared_frame_rotation = false;
 };
 
 /// Where one user is at one round.

@@ -122,10 +122,18 @@ struct Walk {
   int rounds = 16;
 };
 
+mt::FormationConfig shared_rotation(bool on) {
+  mt::FormationConfig c;
+  c.shared_frame_rotation = on;
+  return c;
+}
+
 struct Scenario {
   std::vector<std::vector<Eigen::Vector2d>> pos;  ///< [round][user] truth
   mt::Formation f;
-  explicit Scenario(const Walk& w, unsigned seed = 3) : f({"A", "B", "C", "D"}, mt::FormationConfig{}) {
+  /// `shared`: FormationConfig::shared_frame_rotation (the frame's rotation from every prior).
+  explicit Scenario(const Walk& w, unsigned seed = 3, bool shared = true)
+      : f({"A", "B", "C", "D"}, shared_rotation(shared)) {
     std::mt19937 rng(seed);
     std::normal_distribution<double> n(0.0, 1.0);
     const std::array<Eigen::Vector2d, 4> start{Eigen::Vector2d(0, 0), {4, 1}, {1, 6}, {-3, 3}};
@@ -240,8 +248,8 @@ TEST(MontageFormation, ExactRangesRecoverTheFormation) {
     expect_scales(s, 0.9, 0.02);
   }
   std::printf("exact ranges, short strides: aligned max error mean %.3f m, worst %.3f m\n", sum / 10.0, worst);
-  EXPECT_LT(sum / 10.0, 0.64);  // measured 0.583 m (before the shared-ψ gauge: 0.659 m)
-  EXPECT_LT(worst, 0.9);        // measured 0.808 m (before: 1.065 m)
+  EXPECT_LT(sum / 10.0, 0.64);  // measured 0.583 m (shared_frame_rotation off: 0.659 m)
+  EXPECT_LT(worst, 0.9);        // measured 0.808 m (off: 1.065 m)
 }
 
 TEST(MontageFormation, OffsetPriorBiasesDoNotRotateTheOthers) {
@@ -253,14 +261,18 @@ TEST(MontageFormation, OffsetPriorBiasesDoNotRotateTheOthers) {
   w.offset_noise_rad = 0.0;
   w.heading_noise_rad = 0.0;
   w.offset_bias_rad = 0.3;
-  double sum = 0.0;
+  double sum = 0.0, sum_origin = 0.0;
   for (unsigned seed = 1; seed <= 5; ++seed) {
     Scenario s(w, seed);
     sum += formation_error(s, 10);
     expect_scales(s, 0.9, 0.02);
+    Scenario o(w, seed, false);  // the default: ψ from the origin's prior alone
+    sum_origin += formation_error(o, 10);
   }
-  std::printf("biased offset priors: aligned max error mean %.3f m\n", sum / 5.0);
-  EXPECT_LT(sum / 5.0, 0.45);  // measured 0.330 m (before: 0.876 m)
+  std::printf("biased offset priors: aligned max error mean %.3f m (origin's prior alone: %.3f m)\n", sum / 5.0,
+              sum_origin / 5.0);
+  EXPECT_LT(sum / 5.0, 0.45);          // measured 0.330 m
+  EXPECT_GT(sum_origin / 5.0, 0.7);    // measured 0.876 m: the bias this mode carries
 }
 
 TEST(MontageFormation, NoisyRangesAndMissingPairs) {
@@ -277,8 +289,8 @@ TEST(MontageFormation, NoisyRangesAndMissingPairs) {
     EXPECT_TRUE(s.f.origin_user().has_value());
   }
   std::printf("noisy ranges, missing pairs: aligned max error mean %.3f m, worst %.3f m\n", sum / 10.0, worst);
-  EXPECT_LT(sum / 10.0, 0.6);  // measured 0.526 m (before: 0.543 m)
-  EXPECT_LT(worst, 0.95);       // measured 0.851 m (before: 0.841 m)
+  EXPECT_LT(sum / 10.0, 0.6);  // measured 0.526 m (shared_frame_rotation off: 0.543 m)
+  EXPECT_LT(worst, 0.95);       // measured 0.851 m (off: 0.841 m)
 }
 
 TEST(MontageFormation, NoMovementNoOrientation) {
