@@ -63,6 +63,7 @@ class MontageLocalizer final : public Localizer {
     fc.offset_prior_std_rad = params.get_float("offset_prior_std_rad");
     fc.scale_prior_std = params.get_float("stride_scale_prior_std");
     fc.window_rounds = static_cast<int>(params.get_int("window_rounds"));
+    fc.shared_frame_rotation = params.get_bool("shared_frame_rotation");
 
     // The users: the scene's gold emitters in scene order (the goldcode detector's template order),
     // or param `users` (a live node).
@@ -468,6 +469,9 @@ const ParamSchema& schema() {
                   "Prior std of a walker's heading offset around its acceleration estimate."),
       float_param("stride_scale_prior_std", 0.2, 0.001, 10.0, "", "Prior std of a walker's stride scale k around 1."),
       int_param("window_rounds", std::int64_t{30}, 2, 1000, "", "Rounds adjusted together (older ones are fixed)."),
+      bool_param("shared_frame_rotation", false,
+                 "Estimate the frame's rotation from the world from every walker's offset prior (else from the "
+                 "origin's alone; docs/montage.md)."),
       float_param("std_scale", 1.0, 0.01, 100.0, "", "Reported std_m = this x the adjustment's position std."),
       float_param("std_floor_m", 0.05, 0.0, 10.0, "m", "Smallest reported std_m."),
       bool_param("publish_steps", true,

@@ -327,7 +327,8 @@ void Formation::adjust(std::size_t k) {
     if (localized_[u]) user_col[u] = nl++;
   if (nl == 0) return;
   const int npos = 2 * nl * static_cast<int>(nr);
-  const int nvar = npos + 2 * nl;
+  const int pcol_psi = npos + 2 * nl;  // the frame's rotation from the world-aligned frame, ψ
+  const int nvar = pcol_psi + 1;
   auto pcol = [&](std::size_t q, std::size_t u) { return 2 * (static_cast<int>(q - w0) * nl + user_col[u]); };
   auto dcol = [&](std::size_t u) { return npos + 2 * user_col[u]; };
   auto kcol = [&](std::size_t u) { return npos + 2 * user_col[u] + 1; };
@@ -390,18 +391,34 @@ void Formation::adjust(std::size_t k) {
     for (std::size_t u = 0; u < n; ++u) {
       if (!localized_[u]) continue;
       const int cd = dcol(u), ck = kcol(u);
-      if (origin_ && u == *origin_) {
-        H(cd, cd) += 1.0;  // no unknown: keep the system regular
-      } else {
-        const std::optional<double> prior = prior_offset(u, rounds_[k].tau_s);
-        const double sd = prior ? cfg_.offset_prior_std_rad : std::numbers::pi;
-        const double ed = prior ? std::remainder(delta_[u] - *prior, 2.0 * std::numbers::pi) : 0.0;
-        H(cd, cd) += 1.0 / (sd * sd);
-        g(cd) += ed / (sd * sd);
+      const bool fixed = origin_ && u == *origin_;
+      if (fixed) H(cd, cd) += 1.0;  // no unknown: keep the system regular
+      // The offset prior is in the world-aligned frame, δ in the positions' frame: δ_u − ψ ~ prior_u.
+      // Every user's prior, the origin's too, shares the one ψ, so one device's prior error rotates
+      // no other user's δ (before, the origin's δ was fixed at its own prior and that prior's error
+      // pulled every other δ by the same angle).
+      if (const std::optional<double> prior = prior_offset(u, rounds_[k].tau_s)) {
+        const double w = 1.0 / (cfg_.offset_prior_std_rad * cfg_.offset_prior_std_rad);
+        const double ed = std::remainder(delta_[u] - psi_ - *prior, 2.0 * std::numbers::pi);
+        if (!fixed) {
+          H(cd, cd) += w;
+          g(cd) += w * ed;
+        }
+        if (cfg_.shared_frame_rotation) {  // else ψ stays 0: the origin's prior is taken as exact
+          if (!fixed) {
+            H(cd, pcol_psi) -= w;
+            H(pcol_psi, cd) -= w;
+          }
+          H(pcol_psi, pcol_psi) += w;
+          g(pcol_psi) -= w * ed;
+        }
+      } else if (!fixed) {
+        H(cd, cd) += 1.0 / (std::numbers::pi * std::numbers::pi);
       }
       H(ck, ck) += 1.0 / (cfg_.scale_prior_std * cfg_.scale_prior_std);
       g(ck) += (scale_[u] - 1.0) / (cfg_.scale_prior_std * cfg_.scale_prior_std);
     }
+    H(pcol_psi, pcol_psi) += 1e-6;  // ψ without any prior: not observable, stays
     // Gauge: the origin's position at the base round.
     if (gauge_fixed && origin_) {
       const int c = pcol(base_, *origin_);
@@ -417,7 +434,7 @@ void Formation::adjust(std::size_t k) {
     // ranges barely see) can be metres; take at most 1 m per position and 0.2 rad / 0.1 per δ / k.
     double shrink = 1.0;
     for (int c = 0; c < npos; ++c) shrink = std::min(shrink, 1.0 / std::max(1e-12, std::abs(dx(c))));
-    for (int c = npos; c < nvar; ++c) shrink = std::min(shrink, ((c - npos) % 2 == 0 ? 0.2 : 0.1) / std::max(1e-12, std::abs(dx(c))));
+    for (int c = npos; c < pcol_psi; ++c) shrink = std::min(shrink, ((c - npos) % 2 == 0 ? 0.2 : 0.1) / std::max(1e-12, std::abs(dx(c))));
     dx *= shrink;
     for (std::size_t q = w0; q <= k; ++q)
       for (std::size_t u = 0; u < n; ++u)
@@ -427,6 +444,7 @@ void Formation::adjust(std::size_t k) {
       if (!(origin_ && u == *origin_)) delta_[u] += dx(dcol(u));
       scale_[u] = std::clamp(scale_[u] + dx(kcol(u)), 0.3, 3.0);
     }
+    psi_ += std::clamp(dx(pcol_psi), -0.2, 0.2);
     if (dx.norm() < 1e-4) break;
   }
   // Covariance of the positions at round k (H at the last linearisation).

@@ -21,6 +21,14 @@
 //     k_i (the paper's k, calibrated online from ranging). This generalises the paper's fine-tuning of
 //     distance-vector orientations (minimal rotations that close every ranging triangle): the ranges
 //     are kept as measured and the orientations follow from the positions.
+//     Gauge: the origin's first position (translation) and the origin's δ, set once at its first
+//     localization (rotation), so every solve publishes in one frame. The offset priors are
+//     world-aligned; the frame's rotation from the world, ψ, is one more unknown that every prior
+//     shares (δ_u − ψ ~ prior_u). Ranges fix the formation's shape at each round, but not the group's
+//     common motion (its translation and rotation from round to round): only the movement vectors do,
+//     through k_u and δ_u. Holding the origin's δ at its own prior (before) made that prior's error a
+//     bias of every other δ (the others' priors, absolute, disagreed with the frame by that error),
+//     and the group's common motion turned with it (docs/montage.md, "The maths").
 #pragma once
 
 #include <Eigen/Core>
@@ -85,6 +93,11 @@ struct FormationConfig {
   double max_closure_m = 1.5;        ///< a triangle / two-neighbour placement closing worse is refused
   int window_rounds = 30;            ///< rounds adjusted together (older ones are fixed)
   int iterations = 8;                ///< Gauss-Newton iterations per solve
+  /// The frame's rotation from the world (ψ) estimated from every user's offset prior (true), or
+  /// taken from the origin's prior alone (false: ψ = 0, the origin's prior error biases every other
+  /// δ). Off by default: better on the synthetic walks and the held-out simulator seeds 21-30, worse
+  /// on the foreign montage-103 (docs/montage.md, "The maths": the gauge).
+  bool shared_frame_rotation = false;
 };
 
 /// Where one user is at one round.
@@ -151,6 +164,10 @@ class Formation {
   std::vector<Track> tracks_;
   std::vector<RoundData> rounds_;
   std::vector<double> delta_, scale_;
+  /// The positions' frame rotation from the world-aligned frame of the movement vectors (rad): the
+  /// frame's rotation is fixed by the origin's δ (set once, so successive solves share one frame);
+  /// the offset priors (world-aligned) constrain δ_u − ψ.
+  double psi_ = 0.0;
   std::vector<char> localized_;
   std::optional<std::size_t> origin_;
   std::size_t base_ = 0;  ///< round of the first localization
