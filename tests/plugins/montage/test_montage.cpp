@@ -271,8 +271,10 @@ TEST(MontageFormation, OffsetPriorBiasesDoNotRotateTheOthers) {
   }
   std::printf("biased offset priors: aligned max error mean %.3f m (origin's prior alone: %.3f m)\n", sum / 5.0,
               sum_origin / 5.0);
-  EXPECT_LT(sum / 5.0, 0.45);          // measured 0.330 m
-  EXPECT_GT(sum_origin / 5.0, 0.7);    // measured 0.876 m: the bias this mode carries
+  EXPECT_LT(sum / 5.0, 0.45);  // measured 0.330 m
+  // The default mode measured 0.876 m here (printed, not asserted: a fix of the default must not fail
+  // this test); the shared gauge must not be worse than it.
+  EXPECT_LE(sum, sum_origin);
 }
 
 TEST(MontageFormation, NoisyRangesAndMissingPairs) {
