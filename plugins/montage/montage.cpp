@@ -56,6 +56,7 @@ class MontageLocalizer final : public Localizer {
     std_scale_ = params.get_float("std_scale");
     std_floor_ = params.get_float("std_floor_m");
     publish_steps_ = params.get_bool("publish_steps");
+    step_estimates_ = params.get_bool("step_estimates");
     FormationConfig fc;
     fc.range_std_m = params.get_float("range_std_m");
     fc.step_std_m = params.get_float("step_std_m");
@@ -373,16 +374,49 @@ class MontageLocalizer final : public Localizer {
     const auto s = sync_before(now_);
     if (!s) return;  // the reporter's clock is unknown without its own start signal
     for (std::size_t u = 0; u < users_.size(); ++u) {
-      // Steps up to this round, with the stride calibrated by ranging (k_u).
       auto& st = steps_[u];
-      while (publish_steps_ && !st.empty() && st.front().tau_s <= r.tau_s) {
-        Step e;
-        e.device = DeviceId(users_[u]);
-        e.detector = NameTag(instance_);
-        e.t_s = st.front().t_s;
-        e.stride_m = static_cast<float>(st.front().stride_m * formation_->stride_scale(u));
-        e.frequency_hz = 0.0f;
-        out.publish(Event{e});
+      // A position at every step since the user's previous fix: that fix moved by the user's own
+      // steps (its current offset and stride scale), with what the steps miss of this round's fix
+      // spread over them in proportion to time (so both rounds are met). Published a round late.
+      if (step_estimates_ && fixes[u].localized && last_fix_.count(u)) {
+        const LastFix& prev = last_fix_.at(u);
+        const Eigen::Vector2d closure =
+            fixes[u].position_m - (prev.position_m + formation_->move(u, prev.tau_s, r.tau_s));
+        const double span = r.tau_s - prev.tau_s;
+        for (const StepMessage& m : st) {
+          if (m.tau_s <= prev.tau_s) continue;
+          if (m.tau_s >= r.tau_s) break;
+          const double f = span > 0.0 ? (m.tau_s - prev.tau_s) / span : 1.0;
+          const Eigen::Vector2d p = prev.position_m + formation_->move(u, prev.tau_s, m.tau_s) + f * closure;
+          Estimate e;
+          e.plugin = NameTag(instance_);
+          e.reference = DeviceId(device_);
+          e.frame = NameTag("relative_trace");
+          e.target = NameTag(users_[u]);
+          e.t_s = m.tau_s + *s;
+          e.position_m = {p.x(), p.y(), 0.0};
+          e.dims = 2;
+          // Between two fixes the position is at least as uncertain as the worse of them, and the
+          // steps' own error grows towards the middle (bounded by the closure they had to absorb).
+          const double between = std::min(f, 1.0 - f) * closure.norm();
+          e.std_m = std::max(std_floor_, std_scale_ * std::hypot(std::max(prev.std_m, fixes[u].std_m), between));
+          e.confidence = static_cast<float>(std::exp(-e.std_m / 1.0));
+          out.publish(Event{e});
+          ++published_;
+        }
+      }
+      if (fixes[u].localized) last_fix_[u] = LastFix{r.tau_s, fixes[u].position_m, fixes[u].std_m};
+      // Steps up to this round, with the stride calibrated by ranging (k_u).
+      while (!st.empty() && st.front().tau_s <= r.tau_s) {
+        if (publish_steps_) {
+          Step e;
+          e.device = DeviceId(users_[u]);
+          e.detector = NameTag(instance_);
+          e.t_s = st.front().t_s;
+          e.stride_m = static_cast<float>(st.front().stride_m * formation_->stride_scale(u));
+          e.frequency_hz = 0.0f;
+          out.publish(Event{e});
+        }
         st.pop_front();
       }
       if (!fixes[u].localized) continue;
@@ -430,6 +464,13 @@ class MontageLocalizer final : public Localizer {
   const Clock* clock_ = nullptr;
   double silent_after_s_ = 5.0;
   std::map<std::size_t, std::deque<StepMessage>> steps_;
+  struct LastFix {
+    double tau_s = 0.0;
+    Eigen::Vector2d position_m = Eigen::Vector2d::Zero();
+    double std_m = 0.0;
+  };
+  std::map<std::size_t, LastFix> last_fix_;  ///< each user's latest published round fix
+  bool step_estimates_ = true;
   std::size_t next_round_ = 0;
   double processed_tau_ = -1e300;
   std::uint64_t bad_ = 0, late_reports_ = 0, ranges_ = 0, published_ = 0;
@@ -474,6 +515,9 @@ const ParamSchema& schema() {
                  "origin's alone; docs/montage.md)."),
       float_param("std_scale", 1.0, 0.01, 100.0, "", "Reported std_m = this x the adjustment's position std."),
       float_param("std_floor_m", 0.05, 0.0, 10.0, "m", "Smallest reported std_m."),
+      bool_param("step_estimates", true,
+                 "The reporter also publishes each walker's position at every step between two of its round fixes "
+                 "(the earlier fix moved by the steps, the closure to the later spread over them; one round late)."),
       bool_param("publish_steps", true,
                  "The reporter publishes every walker's steps again (detector = this instance) with the stride "
                  "calibrated by ranging."),

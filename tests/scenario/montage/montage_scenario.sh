@@ -6,7 +6,8 @@
 # 0.07-0.11 m; since `steps` integrates settled stride bands, 2026-11-28: 0.28 / 0.37 / 0.53 m, seed 8
 # worse while 13 of 20 seeds meet 0.5 m instead of 9, so its guard was raised to 0.7 / 1.3 m), not the
 # issue's bars over 20 seeds (docs/montage.md, campaign table:
-# mean <= 0.5 m). A change that breaks ranging, the movement vectors or the formation fails here.
+# mean <= 0.5 m). A change that breaks ranging, the movement vectors or the formation fails here; so
+# does one that stops the per-step positions between round fixes.
 #   montage_scenario.sh LOCUS_BIN SOURCE_DIR
 set -euo pipefail
 locus="$1"
@@ -21,6 +22,21 @@ run_case() {  # seed max-mean-error-m max-p90-error-m max-stride-error-m
     -o formation=free -o degree=7 -o chip_samples=40 -q
   if ! timeout 120 "$locus" replay "$sc" --config "$src/config/montage.yaml" --speed max -o "$sc.est.jsonl" 2>"$sc.replay.log"; then
     echo "[seed $seed] locus replay failed:"; cat "$sc.replay.log"; fail=1; return
+  fi
+  # Positions per step between the round fixes (param step_estimates): a step estimate's t_s is that
+  # walker's step, a round's is shared by every walker located in it.
+  if ! /usr/bin/python3 - "$sc.est.jsonl" <<'PY'
+import collections, json, sys
+est = [json.loads(l) for l in open(sys.argv[1]) if '"estimate"' in l]
+est = [e for e in est if e.get("type") == "estimate"]
+by_t = collections.Counter(round(e["t_s"], 6) for e in est)
+rounds = sum(1 for e in est if by_t[round(e["t_s"], 6)] > 1)
+steps = len(est) - rounds
+print(f"{rounds} round estimates, {steps} step estimates")
+sys.exit(0 if steps >= 0.5 * rounds > 0 else 1)
+PY
+  then
+    echo "[seed $seed] too few per-step estimates"; fail=1
   fi
   local status=0
   timeout 60 "$locus" eval "$sc" "$sc.est.jsonl" --metric montage --max-unknown-targets 0 --min-located-fraction 1.0 \
