@@ -8,6 +8,7 @@
 #include <deque>
 #include <map>
 #include <memory>
+#include <numbers>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -103,6 +104,23 @@ class MontageLocalizer final : public Localizer {
     if (reporter_.empty()) reporter_ = users_.back();
     if (std::find(users_.begin(), users_.end(), reporter_) == users_.end())
       throw std::runtime_error("montage: param 'reporter': '" + reporter_ + "' is not one of the users");
+    // One anchor user with a known start -> absolute positions (Sec. 2): its position at the radio start
+    // signal (tau 0) in the world frame, and where magnetic north points in that frame (a site plan's
+    // north arrow): the movement vectors are magnetic (`attitude` with the magnetometer: x = north,
+    // y = west), so the formation's axes are magnetic up to the origin user's offset estimate.
+    const std::string anchor = params.get_string("anchor_user");
+    if (!anchor.empty()) {
+      const auto it = std::find(users_.begin(), users_.end(), anchor);
+      if (it == users_.end()) throw std::runtime_error("montage: param 'anchor_user': '" + anchor + "' is not one of the users");
+      const std::vector<double> start = params.get_floats("anchor_start_m");
+      if (start.size() != 2)
+        throw std::runtime_error("montage: param 'anchor_start_m': expected [x, y] (the anchor user's world position at the start signal) with anchor_user set");
+      anchor_ = static_cast<std::size_t>(it - users_.begin());
+      anchor_start_m_ = {start[0], start[1]};
+      north_world_rad_ = params.get_float("magnetic_north_world_deg") * std::numbers::pi / 180.0;
+      anchor_start_std_m_ = params.get_float("anchor_start_std_m");
+      frame_rotation_std_rad_ = params.get_float("frame_rotation_std_rad");
+    }
     if (device_ == reporter_) {
       formation_ = std::make_unique<Formation>(users_, fc);
       book_ = RoundBook(params.get_float("round_match_s"));
@@ -370,9 +388,32 @@ class MontageLocalizer final : public Localizer {
     }
   }
 
+  /// The published frame and position of a formation-frame point: `world` once the anchor user is
+  /// localized (anchor_user), else `relative_trace`.
+  /// The std of a published point: the formation's, plus in the `world` frame what the anchor adds
+  /// (its start's std, and the frame's rotation error growing with the distance from the anchor's start).
+  double output_std(const Eigen::Vector2d& p, double formation_std_m) const {
+    double v = formation_std_m * formation_std_m;
+    if (anchor_origin_) {
+      const double rot = frame_rotation_std_rad_ * (p - *anchor_origin_).norm();
+      v += anchor_start_std_m_ * anchor_start_std_m_ + rot * rot;
+    }
+    return std::sqrt(v);
+  }
+
+  std::pair<const char*, Eigen::Vector2d> output_frame(const Eigen::Vector2d& p) const {
+    if (!anchor_origin_) return {"relative_trace", p};
+    const double c = std::cos(north_world_rad_), sn = std::sin(north_world_rad_);
+    const Eigen::Vector2d d = p - *anchor_origin_;
+    return {"world", anchor_start_m_ + Eigen::Vector2d(c * d.x() - sn * d.y(), sn * d.x() + c * d.y())};
+  }
+
   void publish(const Round& r, const std::vector<UserFix>& fixes, Publisher& out) {
     const auto s = sync_before(now_);
     if (!s) return;  // the reporter's clock is unknown without its own start signal
+    // The anchor's formation-frame position at the start signal: its first fix moved back by its steps.
+    if (anchor_ && !anchor_origin_ && fixes[*anchor_].localized)
+      anchor_origin_ = fixes[*anchor_].position_m - formation_->move(*anchor_, 0.0, r.tau_s);
     for (std::size_t u = 0; u < users_.size(); ++u) {
       auto& st = steps_[u];
       // A position at every step since the user's previous fix: that fix moved by the user's own
@@ -391,15 +432,16 @@ class MontageLocalizer final : public Localizer {
           Estimate e;
           e.plugin = NameTag(instance_);
           e.reference = DeviceId(device_);
-          e.frame = NameTag("relative_trace");
+          const auto [frame, q] = output_frame(p);
+          e.frame = NameTag(frame);
           e.target = NameTag(users_[u]);
           e.t_s = m.tau_s + *s;
-          e.position_m = {p.x(), p.y(), 0.0};
+          e.position_m = {q.x(), q.y(), 0.0};
           e.dims = 2;
           // Between two fixes the position is at least as uncertain as the worse of them, and the
           // steps' own error grows towards the middle (bounded by the closure they had to absorb).
           const double between = std::min(f, 1.0 - f) * closure.norm();
-          e.std_m = std::max(std_floor_, std_scale_ * std::hypot(std::max(prev.std_m, fixes[u].std_m), between));
+          e.std_m = std::max(std_floor_, output_std(p, std_scale_ * std::hypot(std::max(prev.std_m, fixes[u].std_m), between)));
           e.confidence = static_cast<float>(std::exp(-e.std_m / 1.0));
           out.publish(Event{e});
           ++published_;
@@ -423,12 +465,13 @@ class MontageLocalizer final : public Localizer {
       Estimate e;
       e.plugin = NameTag(instance_);
       e.reference = DeviceId(device_);
-      e.frame = NameTag("relative_trace");
+      const auto [frame, q] = output_frame(fixes[u].position_m);
+      e.frame = NameTag(frame);
       e.target = NameTag(users_[u]);
       e.t_s = r.tau_s + *s;
-      e.position_m = {fixes[u].position_m.x(), fixes[u].position_m.y(), 0.0};
+      e.position_m = {q.x(), q.y(), 0.0};
       e.dims = 2;
-      e.std_m = std::max(std_floor_, std_scale_ * fixes[u].std_m);
+      e.std_m = std::max(std_floor_, output_std(fixes[u].position_m, std_scale_ * fixes[u].std_m));
       e.confidence = static_cast<float>(std::exp(-e.std_m / 1.0));
       out.publish(Event{e});
       ++published_;
@@ -470,6 +513,10 @@ class MontageLocalizer final : public Localizer {
     double std_m = 0.0;
   };
   std::map<std::size_t, LastFix> last_fix_;  ///< each user's latest published round fix
+  std::optional<std::size_t> anchor_;           ///< anchor_user
+  Eigen::Vector2d anchor_start_m_ = Eigen::Vector2d::Zero();
+  double north_world_rad_ = 0.0, anchor_start_std_m_ = 0.1, frame_rotation_std_rad_ = 0.1;
+  std::optional<Eigen::Vector2d> anchor_origin_;  ///< the anchor at tau 0, formation frame
   bool step_estimates_ = true;
   std::size_t next_round_ = 0;
   double processed_tau_ = -1e300;
@@ -515,6 +562,18 @@ const ParamSchema& schema() {
                  "origin's alone; docs/montage.md)."),
       float_param("std_scale", 1.0, 0.01, 100.0, "", "Reported std_m = this x the adjustment's position std."),
       float_param("std_floor_m", 0.05, 0.0, 10.0, "m", "Smallest reported std_m."),
+      string_param("anchor_user", std::string(""),
+                   "A user whose start is known (\"\" = none): once it is localized, positions are published in the "
+                   "`world` frame instead of `relative_trace`."),
+      float_list_param("anchor_start_m", std::vector<double>{}, -1e6, 1e6, "m",
+                       "[x, y]: the anchor user's world position at the radio start signal.", 0, 2),
+      float_param("magnetic_north_world_deg", 90.0, -360.0, 360.0, "deg",
+                  "Direction of magnetic north in the world frame, counter-clockwise from +x (a site plan's north arrow; "
+                  "90 = world y points north)."),
+      float_param("anchor_start_std_m", 0.1, 0.0, 100.0, "m", "1-sigma of anchor_start_m (added to every world-frame std)."),
+      float_param("frame_rotation_std_rad", 0.1, 0.0, 3.2, "rad",
+                  "1-sigma of the world frame's rotation (magnetic north's direction and the origin user's offset "
+                  "estimate): a world-frame std grows by this x the distance from the anchor's start."),
       bool_param("step_estimates", true,
                  "The reporter also publishes each walker's position at every step between two of its round fixes "
                  "(the earlier fix moved by the steps, the closure to the later spread over them; one round late)."),

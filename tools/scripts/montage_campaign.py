@@ -5,6 +5,12 @@ montage`, and measure the std's coverage (fraction of position errors within 1 s
 one-rigid-transform alignment `relative_trace` uses). Also scores given foreign scenes (--scene).
 
   tools/scripts/montage_campaign.py --bin build/bin --seeds 1-20 [--scene ../shared/scenes/montage-103]
+      [--anchor USER]
+
+--anchor USER: absolute positions (the `world` frame): each scene is replayed with a copy of the config
+that names USER as the anchor user, its start (its true position at its radio start signal) and where
+magnetic north points in the world (truth `magnetic_field_world`) — what a user knows from a site plan;
+scenes whose truth lacks the field are replayed without the anchor (said in the output).
 """
 import argparse
 import json
@@ -38,9 +44,18 @@ def coverage(scene, est_file):
     """Fraction of estimates whose error after the best rigid 2D alignment is within std_m."""
     clocks, tr = truth(scene)
     est, tru, std = [], [], []
+    world_est, world_tru, world_std = [], [], []
     for line in open(est_file):
         e = json.loads(line)
-        if e.get('type') != 'estimate' or e.get('frame') != 'relative_trace':
+        if e.get('type') != 'estimate' or e.get('frame') not in ('relative_trace', 'world'):
+            continue
+        if e['frame'] == 'world':  # absolute (anchor user): no alignment
+            c = clocks.get(e['reference'], {})
+            t = (e['t_s'] - c.get('offset_s', 0.0)) / (1 + c.get('skew_ppm', 0.0) * 1e-6)
+            a = tr[e['target']]
+            world_est.append(e['position_m'][:2])
+            world_tru.append([np.interp(t, a[:, 0], a[:, 1]), np.interp(t, a[:, 0], a[:, 2])])
+            world_std.append(e['std_m'])
             continue
         c = clocks.get(e['reference'], {})
         t = (e['t_s'] - c.get('offset_s', 0.0)) / (1 + c.get('skew_ppm', 0.0) * 1e-6)
@@ -48,6 +63,9 @@ def coverage(scene, est_file):
         est.append(e['position_m'][:2])
         tru.append([np.interp(t, a[:, 0], a[:, 1]), np.interp(t, a[:, 0], a[:, 2])])
         std.append(e['std_m'])
+    if world_est:
+        err = np.linalg.norm(np.array(world_est) - np.array(world_tru), axis=1)
+        return float(np.mean(err <= np.array(world_std))), err.tolist()
     if len(est) < 2:
         return None, []
     P, Q = np.array(est), np.array(tru)
@@ -59,7 +77,40 @@ def coverage(scene, est_file):
     return float(np.mean(err <= np.array(std))), err.tolist()
 
 
-def score(locus, scene, config, work):
+def anchored_config(scene, config, user, work):
+    """A copy of config with `user` as the anchor (its true start, the truth's magnetic north), or None
+    when the scene's truth has no magnetic_field_world."""
+    doc = yaml.safe_load(open(os.path.join(scene, 'scene.yaml')))
+    t = doc.get('truth') or {}
+    field = t.get('magnetic_field_world')
+    if not field:
+        return None
+    dev = next(d for d in doc['devices'] if d['id'] == user)
+    with open(os.path.join(scene, dev['sync'])) as f:
+        next(f)
+        t_sync_local = float(next(f).split(',')[0])
+    c = (t.get('clocks') or {}).get(user, {})
+    t_sync = (t_sync_local - c.get('offset_s', 0.0)) / (1 + c.get('skew_ppm', 0.0) * 1e-6)
+    _, tr = truth(scene)
+    a = tr[user]
+    start = [float(np.interp(t_sync, a[:, 0], a[:, 1])), float(np.interp(t_sync, a[:, 0], a[:, 2]))]
+    cfg = yaml.safe_load(open(config))
+    for loc in cfg.get('localizers', []):
+        if loc.get('plugin') == 'montage':
+            loc.setdefault('params', {}).update({'anchor_user': user, 'anchor_start_m': start,
+                                                 'magnetic_north_world_deg': math.degrees(math.atan2(field[1], field[0]))})
+    out = os.path.join(work, os.path.basename(os.path.normpath(scene)) + '.anchored.yaml')
+    with open(out, 'w') as f:
+        yaml.safe_dump(cfg, f)
+    return out
+
+
+def score(locus, scene, config, work, anchor=None):
+    if anchor:
+        anchored = anchored_config(scene, config, anchor, work)
+        if anchored is None:
+            print(f'{scene}: no truth magnetic_field_world: replayed without the anchor', file=sys.stderr)
+        config = anchored or config
     est = os.path.join(work, os.path.basename(os.path.normpath(scene)) + '.est.jsonl')
     run([os.path.join(locus, 'locus'), 'replay', scene, '--config', config, '--speed', 'max', '-o', est], 'montage_campaign')
     r = run([os.path.join(locus, 'locus'), 'eval', scene, est, '--metric', 'montage', '--json'], 'montage_campaign')
@@ -79,18 +130,19 @@ def main():
     ap.add_argument('--config', default='config/montage.yaml')
     ap.add_argument('--scene', action='append', default=[])
     ap.add_argument('--work', default='/tmp/montage-campaign')
+    ap.add_argument('--anchor', help='anchor user (absolute positions; see the module doc)')
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
     res = []
     for scene in a.scene:
-        r = score(a.bin, scene, a.config, a.work)
+        r = score(a.bin, scene, a.config, a.work, a.anchor)
         r['name'] = os.path.basename(os.path.normpath(scene))
         res.append(r)
     for seed in parse_seeds(a.seeds):
         d = os.path.join(a.work, f'sim{seed}')
         if not os.path.exists(os.path.join(d, 'scene.yaml')):
             run([os.path.join(a.bin, 'locus'), 'simulate', 'montage', d, '--seed', str(seed)] + HARD, 'montage_campaign')
-        r = score(a.bin, d, a.config, a.work)
+        r = score(a.bin, d, a.config, a.work, a.anchor)
         r['name'] = f'seed {seed}'
         res.append(r)
     f = lambda v, n=3: '-' if v is None or (isinstance(v, float) and math.isnan(v)) else (f'{v:.{n}f}' if isinstance(v, float) else str(v))

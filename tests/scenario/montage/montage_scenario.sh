@@ -48,7 +48,31 @@ PY
   fi
 }
 
+# Absolute positions (anchor_user): seed 3 again with W1 as the anchor, its start and the site's
+# magnetic north from the scene's truth (tools/scripts/montage_campaign.py --anchor): every estimate in
+# the `world` frame, scored without alignment.
+anchor_case() {  # seed max-mean-error-m max-p90-error-m
+  local seed="$1" sc="$tmp/seed$1"
+  local cfg
+  cfg="$(/usr/bin/python3 -c "import sys; sys.path.insert(0, '$src/tools/scripts'); import montage_campaign as m; print(m.anchored_config('$sc', '$src/config/montage.yaml', 'W1', '$tmp'))")"
+  if ! timeout 120 "$locus" replay "$sc" --config "$cfg" --speed max -o "$sc.anchored.jsonl" 2>"$sc.anchored.log"; then
+    echo "[seed $seed anchored] locus replay failed:"; cat "$sc.anchored.log"; fail=1; return
+  fi
+  if grep -q '"frame":"relative_trace"' "$sc.anchored.jsonl" || ! grep -q '"frame":"world"' "$sc.anchored.jsonl"; then
+    echo "[seed $seed anchored] expected every estimate in the world frame"; fail=1; return
+  fi
+  local status=0
+  timeout 60 "$locus" eval "$sc" "$sc.anchored.jsonl" --metric montage --max-unknown-targets 0 \
+    --max-mean-error-m "$2" --max-p90-error-m "$3" >"$sc.anchored.txt" 2>&1 || status=$?
+  if [ "$status" -ne 0 ]; then
+    echo "[seed $seed anchored] bars missed (locus eval exit $status):"; cat "$sc.anchored.txt"; fail=1
+  else
+    echo "[seed $seed anchored] OK: $(grep -E 'PASS' "$sc.anchored.txt" | tr -s ' ' | tr '\n' ' ')"
+  fi
+}
+
 run_case 3 0.5 0.8 0.14
+anchor_case 3 0.5 0.8
 run_case 7 0.5 1.0 0.12
 run_case 8 0.7 1.3 0.12
 exit "$fail"
