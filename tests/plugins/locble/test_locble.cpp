@@ -152,7 +152,7 @@ TEST(LocBleLShape, PicksTheTrueSideOfBothLegs) {
     // Tags beside both legs (their projections fall on each leg: what the L is for); a tag off the
     // end of a leg leaves that leg's along-track position ill-conditioned (Eq. 2-5 trades it for n).
     const double s = left ? -1.0 : 1.0;
-    for (const Vec2 tag : {Vec2(s * 1.5, 2.5), Vec2(s * 3.0, 1.5), Vec2(s * 2.0, 3.0)}) {
+    for (const Vec2& tag : {Vec2(s * 1.5, 2.5), Vec2(s * 3.0, 1.5), Vec2(s * 2.0, 3.0)}) {
       const auto bins = bins_for(w, tag, -60.0, 2.0, 0.0, 1);
       std::vector<std::size_t> l1, l2;
       const double t_turn = w.dr.step_begin_s(*w.dr.turn_step(0.7));
