@@ -49,20 +49,14 @@ def coverage(scene, est_file):
         e = json.loads(line)
         if e.get('type') != 'estimate' or e.get('frame') not in ('relative_trace', 'world'):
             continue
-        if e['frame'] == 'world':  # absolute (anchor user): no alignment
-            c = clocks.get(e['reference'], {})
-            t = (e['t_s'] - c.get('offset_s', 0.0)) / (1 + c.get('skew_ppm', 0.0) * 1e-6)
-            a = tr[e['target']]
-            world_est.append(e['position_m'][:2])
-            world_tru.append([np.interp(t, a[:, 0], a[:, 1]), np.interp(t, a[:, 0], a[:, 2])])
-            world_std.append(e['std_m'])
-            continue
         c = clocks.get(e['reference'], {})
         t = (e['t_s'] - c.get('offset_s', 0.0)) / (1 + c.get('skew_ppm', 0.0) * 1e-6)
         a = tr[e['target']]
-        est.append(e['position_m'][:2])
-        tru.append([np.interp(t, a[:, 0], a[:, 1]), np.interp(t, a[:, 0], a[:, 2])])
-        std.append(e['std_m'])
+        # `world` (anchor user): scored without alignment; `relative_trace`: after one rigid transform.
+        lists = (world_est, world_tru, world_std) if e['frame'] == 'world' else (est, tru, std)
+        lists[0].append(e['position_m'][:2])
+        lists[1].append([np.interp(t, a[:, 0], a[:, 1]), np.interp(t, a[:, 0], a[:, 2])])
+        lists[2].append(e['std_m'])
     if world_est:
         err = np.linalg.norm(np.array(world_est) - np.array(world_tru), axis=1)
         return float(np.mean(err <= np.array(world_std))), err.tolist()
