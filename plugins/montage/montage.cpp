@@ -345,7 +345,11 @@ class MontageLocalizer final : public Localizer {
     formation_->add_step(*u, m->tau_s, m->stride_m, m->heading_rad,
                          m->offset_valid ? std::optional<double>(m->offset_rad) : std::nullopt);
     steps_[*u].push_back(*m);
-    heard(*u, m->tau_s);
+    // Alive, but no progress: a step says nothing about the sender's rounds (a round closes after the
+    // next user's arrival, its own next emission or 5 s of IMU time, later than the steps up to it);
+    // counting it as progress let the reporter solve a round before that user's report came, then drop
+    // the report as late, depending on thread timing (montage-103: 1 replay in ~10 lost a walker).
+    heard_wall_s_[*u] = clock_->now_s();
   }
   void on_progress(const LinkMessage& lm) {
     std::string why;
@@ -355,7 +359,8 @@ class MontageLocalizer final : public Localizer {
     if (!u) return;
     heard(*u, m->tau_s);
   }
-  /// User u has passed scene time tau_s (since its start signal), heard now (host time).
+  /// User u has sent every round report and step up to scene time tau_s (since its start signal): its
+  /// round messages and progress messages say so; heard now (host time).
   void heard(std::size_t u, double tau_s) {
     progress_[u] = std::max(progress_[u], tau_s);
     heard_wall_s_[u] = clock_->now_s();
