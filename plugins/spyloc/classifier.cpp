@@ -245,4 +245,9 @@ void LosClassifier::save(const std::string& path, const std::string& note) const
   if (!f) throw std::runtime_error("spyloc: error writing '" + path + "'");
 }
 
+// Generated from config/spyloc-los.yaml (plugins/CMakeLists.txt, locus_embed_text).
+const std::string& builtin_los_model_yaml();
+
+const std::string& LosClassifier::builtin_text() { return builtin_los_model_yaml(); }
+
 }  // namespace locus::plugins::spyloc

@@ -45,6 +45,8 @@ class LosClassifier {
   /// [main] The same from the file's text; `name` names it in errors. A refused file leaves the
   /// model as it was (as does a refused train()).
   void load_text(const std::string& text, const std::string& name);
+  /// [main] The shipped model (config/spyloc-los.yaml as built): what `los_model: builtin` loads.
+  static const std::string& builtin_text();
   /// [main] Writes the model (YAML); `note` goes into trained_on.
   void save(const std::string& path, const std::string& note) const;
   bool ready() const noexcept { return !los_.empty(); }

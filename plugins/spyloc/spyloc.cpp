@@ -142,7 +142,10 @@ class SpyLocLocalizer final : public Localizer {
                                " anchored multitone beacons; at least 3 are needed for a fix");
     const std::string model = params.get_string("los_model");
     if (!model.empty()) {
-      classifier_.load(find_model(model));
+      if (model == "builtin")
+        classifier_.load_text(LosClassifier::builtin_text(), "builtin LoS/NLoS model (config/spyloc-los.yaml)");
+      else
+        classifier_.load(find_model(model));
     } else {
       ctx.log.warn("spyloc: no los_model: every beep is taken as LoS (only the innovation gate rejects NLoS ranges)");
     }
@@ -580,7 +583,7 @@ const ParamSchema& schema() {
       float_param("range_std_m", 0.08, 0.001, 5.0, "m", "1-sigma range error of an LoS beep (sync jitter, first-path timing)."),
       float_param("max_range_m", 40.0, 1.0, 500.0, "m", "Longest range (pairs a beep with a sync)."),
       float_param("sync_slack_s", 0.002, 0.0, 0.1, "s", "A beep may come this much before sync + delay (radio latency, jitter)."),
-      string_param("los_model", std::string(""), "LoS/NLoS model file (locus train spyloc; a relative path is looked up from the working directory, then its parents); \"\" = every beep LoS, gate only."),
+      string_param("los_model", std::string(""), "LoS/NLoS model: builtin (config/spyloc-los.yaml as built), a file written by locus train spyloc (a relative path is looked up from the working directory, then its parents), or \"\" = every beep LoS, gate only."),
       float_param("los_threshold", 0.5, 0.0, 1.0, "", "P(LoS) at or above which a beep's range is used."),
       float_param("nlos_bias_m", 0.0, 0.0, 50.0, "m", "Typical excess of an NLoS range: a used range's variance grows by (1 - P(LoS))·this²."),
       float_param("init_window_s", 1.5, 0.1, 30.0, "s", "LoS ranges of >= 3 beacons within this make the first fix."),

@@ -148,7 +148,7 @@ def absolute_models(localizers):
     for loc in localizers:
         p = loc.get("params") or {}
         for k in ("los_model",):
-            if p.get(k) and not os.path.isabs(p[k]):
+            if p.get(k) and p[k] != "builtin" and not os.path.isabs(p[k]):
                 p[k] = os.path.join(ROOT, p[k])
     return localizers
 

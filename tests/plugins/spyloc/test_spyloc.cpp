@@ -172,6 +172,17 @@ TEST(SpyLocClassifier, SeparatesKnownClassesAndRoundTripsItsFile) {
   }
 }
 
+// `los_model: builtin` is config/spyloc-los.yaml as built: the same model from any working directory.
+TEST(SpyLocClassifier, BuiltinIsTheShippedModelFile) {
+  LosClassifier builtin;
+  builtin.load_text(LosClassifier::builtin_text(), "builtin");
+  ASSERT_TRUE(builtin.ready());
+  LosClassifier file;
+  file.load(std::string(LOCUS_SOURCE_DIR) + "/config/spyloc-los.yaml");
+  EXPECT_EQ(builtin.trained_los(), file.trained_los());
+  EXPECT_GT(builtin.trained_los(), 0u);
+}
+
 // The dead-reckoning tracker learns the heading offset and the stride scale from single ranges: the
 // steps come in a frame rotated by 0.7 rad with strides 1/0.9 too long; it starts 0.25 rad and 10 %
 // off, walks an L with one range per step, and ends with both within a few percent, the position
