@@ -66,6 +66,7 @@ class MontageLocalizer final : public Localizer {
     fc.scale_prior_std = params.get_float("stride_scale_prior_std");
     fc.window_rounds = static_cast<int>(params.get_int("window_rounds"));
     fc.shared_frame_rotation = params.get_bool("shared_frame_rotation");
+    fc.chi2_std_inflation = params.get_bool("chi2_std_inflation");
 
     // The users: the scene's gold emitters in scene order (the goldcode detector's template order),
     // or param `users` (a live node).
@@ -565,6 +566,9 @@ const ParamSchema& schema() {
       bool_param("shared_frame_rotation", false,
                  "Estimate the frame's rotation from the world from every walker's offset prior (else from the "
                  "origin's alone; docs/montage.md)."),
+      bool_param("chi2_std_inflation", true,
+                 "Widen the position std by sqrt of the window's reduced chi-square when above 1 (ranges and "
+                 "movements fitting worse than range_std_m / step_std_m say)."),
       float_param("std_scale", 1.0, 0.01, 100.0, "", "Reported std_m = this x the adjustment's position std."),
       float_param("std_floor_m", 0.05, 0.0, 10.0, "m", "Smallest reported std_m."),
       string_param("anchor_user", std::string(""),

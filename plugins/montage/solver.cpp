@@ -447,6 +447,38 @@ void Formation::adjust(std::size_t k) {
     psi_ += std::clamp(dx(pcol_psi), -0.2, 0.2);
     if (dx.norm() < 1e-4) break;
   }
+  // A posteriori variance factor: when the ranges and movements fit worse than their stds say
+  // (reduced chi-square > 1: a wrong formation, a range or a step model that does not hold), the
+  // covariance is widened by it; never narrowed (a fit cleaner than the stds is not evidence enough).
+  double var_factor = 1.0;
+  if (cfg_.chi2_std_inflation) {
+    double chi2 = 0.0;
+    int nobs = 0;
+    for (std::size_t q = w0; q <= k; ++q) {
+      const RoundData& rd = rounds_[q];
+      for (std::size_t m = 0; m < rd.ranges.size(); ++m) {
+        const RangeObs& ro = rd.ranges[m];
+        if (rd.dropped[m] || !localized_[ro.i] || !localized_[ro.j]) continue;
+        const double e = ((positions_[q][ro.j] - positions_[q][ro.i]).norm() - ro.distance_m) / range_sigma();
+        chi2 += e * e;
+        ++nobs;
+      }
+    }
+    for (std::size_t q = std::max<std::size_t>(w0, base_ + 1); q <= k; ++q)
+      for (std::size_t u = 0; u < n; ++u) {
+        if (!localized_[u] || q - 1 < w0) continue;
+        double steps = 0.0;
+        const Eigen::Vector2d raw = raw_move(u, rounds_[q - 1].tau_s, rounds_[q].tau_s, &steps);
+        const double sig = std::sqrt(cfg_.step_std_m * cfg_.step_std_m * steps +
+                                     std::pow(cfg_.drift_std_m_per_m * scale_[u] * raw.norm(), 2) + 0.02 * 0.02);
+        const Eigen::Vector2d e = (positions_[q][u] - positions_[q - 1][u] - scale_[u] * (rot(delta_[u]) * raw)) / sig;
+        chi2 += e.squaredNorm();
+        nobs += 2;
+      }
+    // Unknowns: the positions (the δ and k are matched by their priors); the gauge fixes two.
+    const int dof = nobs - npos + (gauge_fixed && origin_ ? 2 : 0);
+    if (dof >= 3) var_factor = std::max(1.0, chi2 / dof);
+  }
   // Covariance of the positions at round k (H at the last linearisation).
   Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
   for (std::size_t u = 0; u < n; ++u) {
@@ -456,7 +488,7 @@ void Formation::adjust(std::size_t k) {
     e(c, 0) = 1.0;
     e(c + 1, 1) = 1.0;
     const Eigen::MatrixXd cov = ldlt.solve(e).block(c, 0, 2, 2);
-    stds_[k][u] = std::sqrt(std::max(0.0, 0.5 * cov.trace()));
+    stds_[k][u] = std::sqrt(std::max(0.0, 0.5 * cov.trace()) * var_factor);
   }
   // Outliers: ranges far from the adjusted formation are dropped for good.
   for (std::size_t q = w0; q <= k; ++q) {

@@ -98,6 +98,9 @@ struct FormationConfig {
   /// δ). Off by default: better on the synthetic walks and the held-out simulator seeds 21-30, worse
   /// on the foreign montage-103 (docs/montage.md, "The maths": the gauge).
   bool shared_frame_rotation = false;
+  /// Widen the position covariance by the adjustment's reduced chi-square when it exceeds 1 (ranges
+  /// and movements fitting worse than their stds say).
+  bool chi2_std_inflation = true;
 };
 
 /// Where one user is at one round.
