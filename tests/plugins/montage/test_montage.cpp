@@ -136,8 +136,8 @@ struct Scenario {
   std::vector<std::vector<Eigen::Vector2d>> pos;  ///< [round][user] truth
   mt::Formation f;
   /// `shared`: FormationConfig::shared_frame_rotation (the frame's rotation from every prior).
-  explicit Scenario(const Walk& w, unsigned seed = 3, bool shared = true)
-      : f({"A", "B", "C", "D"}, shared_rotation(shared)) {
+  explicit Scenario(const Walk& w, unsigned seed = 3, bool shared = true) : Scenario(w, seed, shared_rotation(shared)) {}
+  Scenario(const Walk& w, unsigned seed, const mt::FormationConfig& cfg) : f({"A", "B", "C", "D"}, cfg) {
     std::mt19937 rng(seed);
     std::normal_distribution<double> n(0.0, 1.0);
     const std::array<Eigen::Vector2d, 4> start{Eigen::Vector2d(0, 0), {4, 1}, {1, 6}, {-3, 3}};
@@ -308,6 +308,34 @@ TEST(MontageFormation, NoMovementNoOrientation) {
 }
 
 }  // namespace
+
+// The std is widened by the window's reduced chi-square when the data fit worse than their stds say
+// (ranges 4x noisier than range_std_m), and left alone when they fit as said.
+TEST(MontageFormation, StdWidensWhenTheDataFitWorseThanTheirStds) {
+  const auto last_stds = [](const Walk& w, bool inflate) {
+    mt::FormationConfig c;
+    c.chi2_std_inflation = inflate;
+    Scenario s(w, 4, c);
+    std::vector<mt::UserFix> fixes;
+    for (std::size_t k = 0; k < s.f.rounds(); ++k) fixes = s.f.solve(k);
+    std::vector<double> out;
+    for (const auto& f : fixes) {
+      EXPECT_TRUE(f.localized);
+      out.push_back(f.std_m);
+    }
+    return out;
+  };
+  Walk clean;
+  clean.range_noise_m = 0.05;  // configured range_std_m 0.15
+  Walk noisy = clean;
+  noisy.range_noise_m = 0.6;
+  const auto clean_on = last_stds(clean, true), clean_off = last_stds(clean, false);
+  const auto noisy_on = last_stds(noisy, true), noisy_off = last_stds(noisy, false);
+  for (std::size_t u = 0; u < 4; ++u) {
+    EXPECT_DOUBLE_EQ(clean_on[u], clean_off[u]) << u;
+    EXPECT_GT(noisy_on[u], 1.5 * noisy_off[u]) << u;
+  }
+}
 
 namespace {
 
