@@ -374,7 +374,9 @@ class SpyLocLocalizer final : public Localizer {
         pool_.push_back(InitRange{m.beacon, m.t_s, m.range_m});
         while (!pool_.empty() && m.t_s - pool_.front().t_s > pdr_fix_window_s_) pool_.pop_front();
       }
-      recent_.push_back(!b_ok && !b_long);
+      // A too-long range (taken for an NLoS beep the classifier missed) says nothing either way: it is
+      // left out of the window instead of counting as a range that agreed.
+      if (!b_long) recent_.push_back(!b_ok);
       while (recent_.size() > static_cast<std::size_t>(2 * reinit_after_)) recent_.pop_front();
       if (b_ok) {
         rejected_run_ = 0;
