@@ -61,6 +61,7 @@ class LocBleLocalizer final : public Localizer {
     turn_rad_ = p.get_float("turn_deg") * std::numbers::pi / 180.0;
     ambiguous_mass_ = p.get_float("ambiguous_mass");
     method_ = p.get_string("method");
+    point_ = p.get_string("point");
     max_tags_ = static_cast<std::size_t>(p.get_int("max_tags"));
     reg_.n_min = p.get_float("n_min");
     reg_.n_max = p.get_float("n_max");
@@ -308,6 +309,14 @@ class LocBleLocalizer final : public Localizer {
       t.last_why = e.why;
       return;
     }
+    if (point_ == "map" && method_ == "posterior") {
+      // The most probable cell; the std is the posterior's spread about it (E|x - map|²), so a ring or
+      // a flat tail that pulls the mean towards the square's centre widens it instead.
+      const Vec2 d = e.map_m - e.position_m;
+      e.cov_m2 += d * d.transpose();
+      e.std_m = std::sqrt(std::max(0.0, e.cov_m2.trace()));
+      e.position_m = e.map_m;
+    }
     if (method_ == "regression") {
       // The paper's estimator: Eq. 2-5 on both legs, mirror resolved by the L (Sec. 5.1); without a
       // turn yet, the joint fit. The posterior still gives std and confidence.
@@ -445,7 +454,7 @@ class LocBleLocalizer final : public Localizer {
   Link* link_ = nullptr;
   bool subscribed_ = false;
   std::uint64_t subscription_ = 0;
-  std::string instance_, device_, steps_detector_, attitude_detector_, method_;
+  std::string instance_, device_, steps_detector_, attitude_detector_, method_, point_;
   double stride_scale_ = 1.0, default_stride_m_ = 0.7, bin_m_ = 0.5, update_period_s_ = 1.0;
   double gamma_offset_db_ = 0.0, default_tx_power_dbm_ = -59.0, std_scale_ = 1.0, std_floor_m_ = 0.0;
   double turn_rad_ = 0.8, ambiguous_mass_ = 0.3, north_heading0_ = 0.0, cluster_grid_dt_ = 0.1;
@@ -475,6 +484,9 @@ const ParamSchema& schema() {
       string_param("attitude_detector", "attitude", "Attitude events of this instance (or <name>_<device>) give its heading."),
       float_param("stride_scale", 1.0, 0.1, 5.0, "", "Multiplies every detected stride (calibration of the step detector's model)."),
       float_param("default_stride_m", 0.7, 0.1, 2.0, "m", "Stride used when a step event carries none."),
+      enum_param("point", "mean", {"mean", "map"},
+                 "The published point of the posterior (method posterior): its mean, or its most probable cell "
+                 "(std then about that cell)."),
       enum_param("method", "posterior", {"posterior", "regression"},
                  "posterior: the grid posterior mean (solver.hpp); regression: the paper's Eq. 2-5 with the L-shape mirror choice."),
       float_param("bin_m", 0.5, 0.05, 10.0, "m", "Readings within this much walked distance form one measurement bin."),

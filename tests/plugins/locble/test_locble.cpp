@@ -338,12 +338,36 @@ Params params(std::initializer_list<std::pair<const char*, ParamValue>> kv = {})
   return p;
 }
 
+/// The L walk of LocatesATagFromEventsInMemory through a localizer with `point` (mean | map); the
+/// estimates published.
+std::vector<Estimate> locate_in_memory(const std::string& point);
+
 TEST(LocBlePlugin, LocatesATagFromEventsInMemory) {
+  const std::vector<Estimate> estimates = locate_in_memory("mean");
+  ASSERT_FALSE(estimates.empty());
+  const Estimate& e = estimates.back();
+  const Vec2 tag(2.0, 3.0);
+  const double stride = 0.7;
+  EXPECT_EQ(e.target.str(), "C4:2C:03:01:02:03");
+  EXPECT_EQ(e.reference.str(), "O");
+  EXPECT_EQ(e.frame.str().rfind("observer_start@", 0), 0u);
+  EXPECT_EQ(e.dims, 2);
+  EXPECT_LT(std::hypot(e.position_m[0] - tag.x(), e.position_m[1] - tag.y()), 0.5)
+      << e.position_m[0] << " " << e.position_m[1];
+  // Guidance from the end of the walk (5 steps forward, 5 to the left).
+  const Vec2 here(-5 * stride, 5 * stride);
+  EXPECT_NEAR(e.distance_m, (tag - here).norm(), 0.5);
+  EXPECT_NEAR(e.direction_rad, std::atan2(tag.y() - here.y(), tag.x() - here.x()), 0.2);
+  EXPECT_TRUE(std::isfinite(e.std_m));
+  EXPECT_GT(e.confidence, 0.0f);
+}
+
+std::vector<Estimate> locate_in_memory(const std::string& point) {
   test::TestHost host;
   HostContext ctx = host.context("locble", "O");
   std::unique_ptr<Localizer> loc(lb::descriptor()->create_localizer());
   loc->configure(params({{"gamma_sd_db", 1.0}, {"n_mean", 2.0}, {"n_sd", 0.1}, {"shadowing_sd_db", 0.5},
-                         {"fading_sd_db", 1.0}, {"grid_step_m", 0.5}}),
+                         {"fading_sd_db", 1.0}, {"grid_step_m", 0.5}, {"point", point}}),
                  ctx);
   CollectingPublisher out;
   const Vec2 tag(2.0, 3.0);
@@ -394,20 +418,18 @@ TEST(LocBlePlugin, LocatesATagFromEventsInMemory) {
     }
   }
   loc->finish(out);
-  ASSERT_FALSE(out.estimates.empty());
-  const Estimate& e = out.estimates.back();
-  EXPECT_EQ(e.target.str(), "C4:2C:03:01:02:03");
-  EXPECT_EQ(e.reference.str(), "O");
-  EXPECT_EQ(e.frame.str().rfind("observer_start@", 0), 0u);
-  EXPECT_EQ(e.dims, 2);
-  EXPECT_LT(std::hypot(e.position_m[0] - tag.x(), e.position_m[1] - tag.y()), 0.5)
-      << e.position_m[0] << " " << e.position_m[1];
-  // Guidance from the end of the walk (5 steps forward, 5 to the left).
-  const Vec2 here(-5 * stride, 5 * stride);
-  EXPECT_NEAR(e.distance_m, (tag - here).norm(), 0.5);
-  EXPECT_NEAR(e.direction_rad, std::atan2(tag.y() - here.y(), tag.x() - here.x()), 0.2);
-  EXPECT_TRUE(std::isfinite(e.std_m));
-  EXPECT_GT(e.confidence, 0.0f);
+  return out.estimates;
+}
+
+// point: map publishes the most probable cell; its std is the spread about that cell, never below
+// the spread about the mean.
+TEST(LocBlePlugin, MapPointIsTheMostProbableCell) {
+  const std::vector<Estimate> mean = locate_in_memory("mean"), map = locate_in_memory("map");
+  ASSERT_FALSE(map.empty());
+  ASSERT_EQ(mean.size(), map.size());
+  const Estimate& e = map.back();
+  EXPECT_LT(std::hypot(e.position_m[0] - 2.0, e.position_m[1] - 3.0), 0.5) << e.position_m[0] << " " << e.position_m[1];
+  EXPECT_GE(e.std_m, mean.back().std_m - 1e-9);
 }
 
 TEST(LocBlePlugin, MovingTargetPublishesItsMotion) {
