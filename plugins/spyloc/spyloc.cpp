@@ -105,6 +105,7 @@ class SpyLocLocalizer final : public Localizer {
     pcfg_.heading_std_rad = params.get_float("step_heading_std_rad");
     pcfg_.gate_sigma = tcfg_.gate_sigma;
     pcfg_.gate_long_sigma = tcfg_.gate_long_sigma;
+    pcfg_.huber_sigma = params.get_float("range_huber_sigma");
     region_ = params.get_floats("region_m");
     if (!region_.empty() && (region_.size() != 4 || !(region_[2] > region_[0]) || !(region_[3] > region_[1])))
       throw std::runtime_error("spyloc: param 'region_m': expected [x_min, y_min, x_max, y_max] with max > min, or []");
@@ -610,6 +611,9 @@ const ParamSchema& schema() {
       float_param("step_wait_s", 1.5, 0.0, 10.0, "s",
                   "Dead reckoning: a range waits until the steps up to its time are known, at most this long (a standing walker makes none)."),
       float_param("stride_std", 0.15, 0.0, 1.0, "", "Dead reckoning: per-step stride error (fraction of the stride)."),
+      float_param("range_huber_sigma", 2.0, 0.0, 100.0, "",
+                  "Dead reckoning: a LoS range more than this many sigmas off (inside the gate) is taken with the variance "
+                  "that puts it this many sigmas out (a robust, Huber-like update; docs/spyloc.md); 0 = plain EKF update."),
       float_param("step_heading_std_rad", 0.12, 0.0, 1.0, "rad", "Dead reckoning: per-step direction error."),
       float_param("pdr_std_scale", 1.38, 0.01, 100.0, "", "Scale of the dead-reckoning filter's std (std_m = this x its position std): 2 std_m cover 95 % of the simulator's errors (docs/spyloc.md \"Uncertainty\")."),
   };

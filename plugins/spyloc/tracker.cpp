@@ -140,11 +140,17 @@ bool PdrTracker::update_range(const std::array<double, 3>& b, double z_m, double
   nis = nu * nu / S;
   const double gate = nu > 0.0 ? cfg_.gate_long_sigma : cfg_.gate_sigma;
   if (nis > gate * gate) return false;
-  const Eigen::Vector4d K = P_ * H.transpose() / S;
+  // Huber: an innovation beyond huber_sigma is taken with the variance that puts it there.
+  double R = std_m * std_m, S_eff = S;
+  if (cfg_.huber_sigma > 0.0 && nis > cfg_.huber_sigma * cfg_.huber_sigma) {
+    S_eff = nu * nu / (cfg_.huber_sigma * cfg_.huber_sigma);
+    R += S_eff - S;
+  }
+  const Eigen::Vector4d K = P_ * H.transpose() / S_eff;
   x_ += K * nu;
   x_(3) = std::clamp(x_(3), 0.5, 2.0);
   const Eigen::Matrix4d I_KH = Eigen::Matrix4d::Identity() - K * H;
-  P_ = I_KH * P_ * I_KH.transpose() + K * (std_m * std_m) * K.transpose();  // Joseph form
+  P_ = I_KH * P_ * I_KH.transpose() + K * R * K.transpose();  // Joseph form
   return true;
 }
 

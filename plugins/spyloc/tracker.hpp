@@ -69,6 +69,11 @@ struct PdrConfig {
   double heading_std_rad = 0.06;  ///< per-step direction error (sway, trunk rotation)
   double psi_walk_rad = 0.01;     ///< per-step random walk of ψ (gyro drift, phone re-gripped)
   double k_walk = 0.004;          ///< per-step random walk of k
+  /// Bound (sigmas) of a range update that passes the gate: an innovation ν beyond it is taken with
+  /// the variance that puts it at huber_sigma sigmas (S → ν²/huber_sigma²), so it moves the state
+  /// (huber_sigma² / NIS) as far as the plain update; the hypothesis' likelihood still counts the
+  /// whole innovation. 0 = off (the plugin's default: 2).
+  double huber_sigma = 0.0;
   double gate_sigma = 4.0;
   double gate_long_sigma = 2.5;
 };

@@ -183,6 +183,41 @@ TEST(SpyLocClassifier, BuiltinIsTheShippedModelFile) {
   EXPECT_GT(builtin.trained_los(), 0u);
 }
 
+// Huber range update: a range 3.5 sigmas short (inside the 4-sigma gate: an early spurious path) is
+// taken with the variance that puts it at 2 sigmas, so it moves the state (2 / 3.5)² as far as the
+// plain EKF update; the likelihood still sees all of it; a range within 2 sigmas updates exactly as
+// the plain EKF.
+TEST(SpyLocPdrTracker, HuberBoundsWhatOneOutlierRangeMoves) {
+  const auto run = [](double huber, double sigmas, double& nis) {
+    PdrConfig c;
+    c.huber_sigma = huber;
+    PdrTracker t(c);
+    t.init({5.0, 4.0}, {0.04, 0.0, 0.04}, 0.3, 0.25, 1.0, 0.1);
+    t.step({1.0, 0.0});
+    const std::array<double, 3> beacon{1.5, 1.5, 1.0};
+    const auto p = t.position();
+    const double predicted = std::hypot(p[0] - beacon[0], p[1] - beacon[1]);
+    // The innovation's sigma: the predicted range's variance from the state plus the range's.
+    t.update_range(beacon, 1.0, predicted, 0.1, nis);
+    const double s = std::sqrt(t.last_innovation_var());
+    PdrTracker u(c);
+    u.init({5.0, 4.0}, {0.04, 0.0, 0.04}, 0.3, 0.25, 1.0, 0.1);
+    u.step({1.0, 0.0});
+    EXPECT_TRUE(u.update_range(beacon, 1.0, predicted - sigmas * s, 0.1, nis));
+    const auto q = u.position();
+    return std::array<double, 2>{std::hypot(q[0] - p[0], q[1] - p[1]), std::abs(u.psi_rad() - 0.3)};
+  };
+  double nis_plain = 0.0, nis_huber = 0.0;
+  const auto plain = run(0.0, 3.5, nis_plain), huber = run(2.0, 3.5, nis_huber);
+  EXPECT_NEAR(nis_plain, 3.5 * 3.5, 0.01);
+  EXPECT_NEAR(nis_huber, nis_plain, 1e-9) << "the likelihood must see the whole innovation";
+  EXPECT_NEAR(huber[0], plain[0] * (2.0 / 3.5) * (2.0 / 3.5), 1e-6);
+  EXPECT_LT(huber[1], plain[1]);
+  double n1 = 0.0, n2 = 0.0;
+  const auto small_plain = run(0.0, 1.5, n1), small_huber = run(2.0, 1.5, n2);
+  EXPECT_DOUBLE_EQ(small_plain[0], small_huber[0]);
+}
+
 // The dead-reckoning tracker learns the heading offset and the stride scale from single ranges: the
 // steps come in a frame rotated by 0.7 rad with strides 1/0.9 too long; it starts 0.25 rad and 10 %
 // off, walks an L with one range per step, and ends with both within a few percent, the position
