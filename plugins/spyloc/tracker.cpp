@@ -40,22 +40,40 @@ void Tracker::predict(double t_s) {
   t_ = t_s;
 }
 
+namespace {
+
+/// One range update of a 4-state EKF (both trackers): the innovation nu with range std std_m, gated
+/// (gate_long for a range longer than predicted), and beyond huber sigmas taken with the variance that
+/// puts it at huber sigmas (0 = off). Writes the NIS and the innovation variance; false = gated out.
+bool range_update(Eigen::Vector4d& x, Eigen::Matrix4d& P, const Eigen::RowVector4d& H, double nu, double std_m,
+                  double gate_sigma, double gate_long_sigma, double huber, double& nis, double& S_out) {
+  const double S = (H * P * H.transpose())(0, 0) + std_m * std_m;
+  S_out = S;
+  nis = nu * nu / S;
+  const double gate = nu > 0.0 ? gate_long_sigma : gate_sigma;
+  if (nis > gate * gate) return false;
+  double R = std_m * std_m, S_eff = S;
+  if (huber > 0.0 && nis > huber * huber) {
+    S_eff = nu * nu / (huber * huber);
+    R += S_eff - S;
+  }
+  const Eigen::Vector4d K = P * H.transpose() / S_eff;
+  x += K * nu;
+  const Eigen::Matrix4d I_KH = Eigen::Matrix4d::Identity() - K * H;
+  P = I_KH * P * I_KH.transpose() + K * R * K.transpose();  // Joseph form
+  return true;
+}
+
+}  // namespace
+
 bool Tracker::update_range(const std::array<double, 3>& b, double z_m, double range_m, double std_m, double& nis) {
   const Eigen::Vector3d d(x_(0) - b[0], x_(1) - b[1], z_m - b[2]);
   const double r = std::max(d.norm(), 1e-6);
   Eigen::RowVector4d H = Eigen::RowVector4d::Zero();
   H(0) = d.x() / r;
   H(1) = d.y() / r;
-  const double S = (H * P_ * H.transpose())(0, 0) + std_m * std_m;
-  const double nu = range_m - r;
-  nis = nu * nu / S;
-  const double gate = nu > 0.0 ? cfg_.gate_long_sigma : cfg_.gate_sigma;
-  if (nis > gate * gate) return false;
-  const Eigen::Vector4d K = P_ * H.transpose() / S;
-  x_ += K * nu;
-  const Eigen::Matrix4d I_KH = Eigen::Matrix4d::Identity() - K * H;
-  P_ = I_KH * P_ * I_KH.transpose() + K * (std_m * std_m) * K.transpose();  // Joseph form
-  return true;
+  double S = 0.0;
+  return range_update(x_, P_, H, range_m - r, std_m, cfg_.gate_sigma, cfg_.gate_long_sigma, cfg_.huber_sigma, nis, S);
 }
 
 void Tracker::inflate(double pos_std_m, double vel_std_mps) {
@@ -134,24 +152,9 @@ bool PdrTracker::update_range(const std::array<double, 3>& b, double z_m, double
   Eigen::RowVector4d H = Eigen::RowVector4d::Zero();
   H(0) = d.x() / r;
   H(1) = d.y() / r;
-  const double S = (H * P_ * H.transpose())(0, 0) + std_m * std_m;
-  last_S_ = S;
-  const double nu = range_m - r;
-  nis = nu * nu / S;
-  const double gate = nu > 0.0 ? cfg_.gate_long_sigma : cfg_.gate_sigma;
-  if (nis > gate * gate) return false;
-  // Huber: an innovation beyond huber_sigma is taken with the variance that puts it there.
-  double R = std_m * std_m, S_eff = S;
-  if (cfg_.huber_sigma > 0.0 && nis > cfg_.huber_sigma * cfg_.huber_sigma) {
-    S_eff = nu * nu / (cfg_.huber_sigma * cfg_.huber_sigma);
-    R += S_eff - S;
-  }
-  const Eigen::Vector4d K = P_ * H.transpose() / S_eff;
-  x_ += K * nu;
-  x_(3) = std::clamp(x_(3), 0.5, 2.0);
-  const Eigen::Matrix4d I_KH = Eigen::Matrix4d::Identity() - K * H;
-  P_ = I_KH * P_ * I_KH.transpose() + K * R * K.transpose();  // Joseph form
-  return true;
+  const bool ok = range_update(x_, P_, H, range_m - r, std_m, cfg_.gate_sigma, cfg_.gate_long_sigma, cfg_.huber_sigma, nis, last_S_);
+  if (ok) x_(3) = std::clamp(x_(3), 0.5, 2.0);
+  return ok;
 }
 
 double PdrTracker::position_std() const { return std::sqrt(std::max(0.0, P_(0, 0) + P_(1, 1))); }

@@ -26,6 +26,10 @@ struct TrackerConfig {
   /// missed NLoS beep is a positive outlier). 2.5 vs 4 (= gate_sigma): p90 better on 10 of 12
   /// simulated seeds (101-112; median of p90 2.5 vs 4.3 m) and on spyloc-104 (4.8 vs 5.4 m).
   double gate_long_sigma = 2.5;
+  /// As PdrConfig::huber_sigma; 0 (off) in the plugin: with dead_reckoning false, 2 made seeds 101-120
+  /// worse (pooled p90 0.82 -> 0.93 m; spyloc-104 6.98 -> 3.46 m): a constant-velocity track needs
+  /// its ranges to pull hard.
+  double huber_sigma = 0.0;
 };
 
 class Tracker {
