@@ -129,6 +129,21 @@ void LosClassifier::train(const std::vector<DecayVector>& los, const std::vector
   prior_los_ = static_cast<double>(n_los_) / static_cast<double>(n_los_ + n_nlos_);
 }
 
+double fuse_los(double p_los_decay, double innovation_m, double innovation_std_m, double nlos_excess_max_m) noexcept {
+  const double p = std::clamp(p_los_decay, 1e-9, 1.0 - 1e-9);
+  if (!(nlos_excess_max_m > 0.0) || !(innovation_std_m > 0.0) || !std::isfinite(innovation_m) ||
+      !std::isfinite(p_los_decay))
+    return p_los_decay;
+  const double z = innovation_m / innovation_std_m;
+  const double l_los = std::exp(-0.5 * z * z) / (innovation_std_m * std::sqrt(2.0 * std::numbers::pi));
+  // ∫ U(e; 0, E) N(ν − e; 0, σ²) de = (Φ(ν/σ) − Φ((ν − E)/σ)) / E
+  auto Phi = [](double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); };
+  const double l_nlos = (Phi(z) - Phi((innovation_m - nlos_excess_max_m) / innovation_std_m)) / nlos_excess_max_m;
+  const double num = p * l_los, den = num + (1.0 - p) * l_nlos;
+  if (!(den > 0.0) || !std::isfinite(den)) return p_los_decay;
+  return num / den;
+}
+
 double LosClassifier::p_los(const DecayVector& f) const noexcept {
   if (!ready()) return 0.5;
   double a = std::log(prior_los_), b = std::log(1.0 - prior_los_);

@@ -65,6 +65,16 @@ class LosClassifier {
   std::size_t n_los_ = 0, n_nlos_ = 0;
 };
 
+/// P(LoS) of a ranged beep from its decay verdict and from what a track predicts for its range (the
+/// localizer's verdict, docs/spyloc.md "LoS/NLoS verdict"): the classifier's P(LoS) as the prior, times
+/// the likelihood of the range's innovation ν = measured − predicted under each class. LoS: ν ~ N(0, σ²).
+/// NLoS: the detector times a diffracted or reflected path, never shorter than the direct one, so
+/// ν = e + N(0, σ²) with the excess path e ~ U(0, nlos_excess_max_m). σ = the innovation's std (track
+/// and range). A range far SHORTER than predicted is unlikely under both (the track is what is wrong):
+/// where both likelihoods vanish the classifier's P(LoS) is returned unchanged, as it is for
+/// nlos_excess_max_m <= 0 or a non-finite input. [RT-safe: no allocation]
+double fuse_los(double p_los_decay, double innovation_m, double innovation_std_m, double nlos_excess_max_m) noexcept;
+
 /// [main] EM for a 1-D mixture (exposed for the tests).
 Mixture1d fit_mixture_1d(const std::vector<double>& x, int components, double sd_floor);
 

@@ -60,6 +60,8 @@ struct RangeMeas {
   std::size_t beacon = 0;
   double range_m = 0.0;
   double std_m = 0.0;
+  double p_los_decay = 1.0;  ///< the classifier's P(LoS); the verdict is made against the track (fuse_los)
+  double range_var_m2 = 0.0;  ///< the range's own variance before the NLoS-bias term
   bool los = true;
 };
 
@@ -91,6 +93,7 @@ class SpyLocLocalizer final : public Localizer {
     std_scale_ = params.get_float("std_scale");
     std_floor_ = params.get_float("std_floor_m");
     nlos_bias_m_ = params.get_float("nlos_bias_m");
+    nlos_excess_max_m_ = params.get_float("nlos_excess_max_m");
     tcfg_.accel_std_mps2 = params.get_float("accel_std_mps2");
     tcfg_.max_speed_mps = params.get_float("max_speed_mps");
     tcfg_.gate_sigma = params.get_float("gate_sigma");
@@ -249,23 +252,26 @@ class SpyLocLocalizer final : public Localizer {
       return;
     }
     const double range = std::max(0.0, c_ * (p.t_s - *sync - b.delay_s));
-    const double pl = classifier_.ready() ? classifier_.p_los(decay) : 1.0;
-    const bool los = pl >= los_thr_;
-    if (!los) ++nlos_;
+    const double pl_decay = classifier_.ready() ? classifier_.p_los(decay) : 1.0;
     const double dz = b.anchor[2] - z_;
-    // An uncertain verdict carries the NLoS bias it may hide as variance: + (1 − P(LoS))·nlos_bias_m².
-    const double sd = std::sqrt(range_std_ * range_std_ + std::pow(dz * height_std_ / std::max(range, 1.0), 2) +
-                                (1.0 - pl) * nlos_bias_m_ * nlos_bias_m_);
+    const double var = range_std_ * range_std_ + std::pow(dz * height_std_ / std::max(range, 1.0), 2);
     if (dead_reckoning_ && !pdr_active() && dr_.steps() > 0 && tracker_.initialised()) {
       tracker_.predict(p.t_s);
       start_pdr(p.t_s, tracker_.position(), tracker_.position_cov());
     }
     if (pdr_active()) {
-      queued_.push_back(RangeMeas{p.t_s, p.beacon, range, sd, los});
+      queued_.push_back(RangeMeas{p.t_s, p.beacon, range, 0.0, pl_decay, var, true});
       latest_t_ = std::max(latest_t_, p.t_s);
       flush_ranges(out, false);
       return;
     }
+    // The verdict: the decay's, weighed by what the track predicts for this range once there is one.
+    if (tracker_.initialised()) tracker_.predict(p.t_s);
+    const double pl = tracker_.initialised() ? verdict(pl_decay, tracker_.predict_range(b.anchor, z_), range, var) : pl_decay;
+    bool los = pl >= los_thr_;
+    if (!los) ++nlos_;
+    // An uncertain verdict carries the NLoS bias it may hide as variance: + (1 − P(LoS))·nlos_bias_m².
+    const double sd = std::sqrt(var + (1.0 - pl) * nlos_bias_m_ * nlos_bias_m_);
     bool gated = false;
     if (!tracker_.initialised()) {
       if (!los) return;
@@ -273,8 +279,8 @@ class SpyLocLocalizer final : public Localizer {
       while (!init_.empty() && p.t_s - init_.front().t_s > init_window_s_) init_.pop_front();
       if (!try_init(p.t_s)) return;
     } else {
-      tracker_.predict(p.t_s);
       if (los) {
+        const double predicted = tracker_.predict_range(b.anchor, z_).range_m;
         init_.push_back(InitRange{p.beacon, p.t_s, range});
         while (!init_.empty() && p.t_s - init_.front().t_s > init_window_s_) init_.pop_front();
         double nis = 0.0;
@@ -286,6 +292,11 @@ class SpyLocLocalizer final : public Localizer {
         if (!ok) {
           gated = true;
           ++gated_;
+          // Gated out as too long: what an NLoS beep looks like; it was not used as LoS, and says so.
+          if (range > predicted) {
+            los = false;
+            ++nlos_;
+          }
           // Lost: reinit_after gated-out LoS ranges among the last 2·reinit_after (a track in a mirror
           // image keeps agreeing with the beacons of one line, so consecutive counts would miss it):
           // a new fix from the recent LoS ranges of all beacons.
@@ -318,6 +329,30 @@ class SpyLocLocalizer final : public Localizer {
     pdr_since_s_ = t;
   }
   bool pdr_active() const noexcept { return !hyps_.empty(); }
+  /// P(LoS) of a range against a track's prediction (fuse_los; `nlos_excess_max_m` 0: the decay's alone).
+  /// The track only clears beeps the decay calls NLoS, and only while it is not ambiguous (its mirror
+  /// fix or heading hypotheses disagree by more than 1 m): one the decay calls LoS keeps its P(LoS) and
+  /// is left to the gate, so that a track that drifted still sees the ranges that disagree with it, and
+  /// an ambiguous track cannot confirm itself with NLoS ranges (either lost seed 103's track:
+  /// p90 0.70 -> 2.7 m, docs/spyloc.md "LoS/NLoS verdict").
+  double verdict(double p_los_decay, const RangePrediction& pred, double range_m, double range_var_m2) const {
+    if (pdr_active() ? pdr_spread_m() > 1.0 : ambiguous_) return p_los_decay;
+    return std::max(p_los_decay,
+                    fuse_los(p_los_decay, range_m - pred.range_m, std::sqrt(pred.var_m2 + range_var_m2), nlos_excess_max_m_));
+  }
+  /// Dead reckoning: how far the hypotheses nearly as likely as the best (within 3 in log-likelihood)
+  /// are from it.
+  double pdr_spread_m() const {
+    const std::size_t b = best_hyp();
+    const auto xy = hyps_[b].tracker.position();
+    double spread = 0.0;
+    for (const Hypothesis& h : hyps_)
+      if (h.loglik >= hyps_[b].loglik - 3.0) {
+        const auto q = h.tracker.position();
+        spread = std::max(spread, std::hypot(q[0] - xy[0], q[1] - xy[1]));
+      }
+    return spread;
+  }
   std::size_t best_hyp() const {
     std::size_t b = 0;
     for (std::size_t i = 1; i < hyps_.size(); ++i)
@@ -339,10 +374,17 @@ class SpyLocLocalizer final : public Localizer {
     }
   }
 
-  void pdr_range(const RangeMeas& m, Publisher& out) {
+  void pdr_range(RangeMeas m, Publisher& out) {
     const Eigen::Vector2d d = dr_.position_at(m.t_s);
     for (Hypothesis& h : hyps_) h.tracker.step({d.x() - applied_dr_.x(), d.y() - applied_dr_.y()});
     applied_dr_ = d;
+    {  // the verdict against the most likely hypothesis' track
+      const auto& bp = beacons_[m.beacon].anchor;
+      const double pl = verdict(m.p_los_decay, hyps_[best_hyp()].tracker.predict_range(bp, z_), m.range_m, m.range_var_m2);
+      m.los = pl >= los_thr_;
+      if (!m.los) ++nlos_;
+      m.std_m = std::sqrt(m.range_var_m2 + (1.0 - pl) * nlos_bias_m_ * nlos_bias_m_);
+    }
     bool gated = false;
     if (m.los) {
       const auto& bp = beacons_[m.beacon].anchor;
@@ -365,6 +407,10 @@ class SpyLocLocalizer final : public Localizer {
       for (const Hypothesis& h : hyps_)
         if (h.loglik >= hyps_[b].loglik - prune_loglik_) kept.push_back(h);
       const bool b_ok = ok[b], b_long = too_long[b];
+      if (b_long) {  // gated out as too long: not used as LoS, and the verdict says so
+        m.los = false;
+        ++nlos_;
+      }
       hyps_ = std::move(kept);
       // A range longer than the best track allows is what an NLoS beep the classifier missed looks
       // like: no sign that the track is lost, and kept out of a next fix. Too SHORT ranges (no path
@@ -507,12 +553,7 @@ class SpyLocLocalizer final : public Localizer {
     e.std_m = std::max(std_floor_, pdr ? pdr_std_scale_ * hyps_[b].tracker.position_std() : std_scale_ * tracker_.position_std());
     bool pdr_ambiguous = false;
     if (pdr) {  // other heading hypotheses nearly as likely elsewhere: say so, and widen the std
-      double spread = 0.0;
-      for (const Hypothesis& h : hyps_)
-        if (h.loglik >= hyps_[b].loglik - 3.0) {
-          const auto q = h.tracker.position();
-          spread = std::max(spread, std::hypot(q[0] - xy[0], q[1] - xy[1]));
-        }
+      const double spread = pdr_spread_m();
       if (spread > 1.0) pdr_ambiguous = true;
       e.std_m = std::hypot(e.std_m, spread);
     }
@@ -536,7 +577,7 @@ class SpyLocLocalizer final : public Localizer {
   Logger* log_ = nullptr;
   std::string instance_, device_, detector_;
   double c_ = 343.2, z_ = 1.2, height_std_ = 0.25, range_std_ = 0.08, max_range_ = 40.0, slack_s_ = 0.002;
-  double nlos_bias_m_ = 0.0;
+  double nlos_bias_m_ = 0.0, nlos_excess_max_m_ = 8.0;
   double los_thr_ = 0.5, init_window_s_ = 1.5, std_scale_ = 1.42, std_floor_ = 0.05;
   int reinit_after_ = 3;
   std::vector<double> region_;
@@ -589,6 +630,9 @@ const ParamSchema& schema() {
       string_param("los_model", std::string(""), "LoS/NLoS model: builtin (config/spyloc-los.yaml as built), a file written by locus train spyloc (a relative path is looked up from the working directory, then its parents), or \"\" = every beep LoS, gate only."),
       float_param("los_threshold", 0.5, 0.0, 1.0, "", "P(LoS) at or above which a beep's range is used."),
       float_param("nlos_bias_m", 0.0, 0.0, 50.0, "m", "Typical excess of an NLoS range: a used range's variance grows by (1 - P(LoS))·this²."),
+      float_param("nlos_excess_max_m", 8.0, 0.0, 100.0, "m",
+                  "The verdict weighs the decay's P(LoS) by the range's innovation against the track: an NLoS range is "
+                  "longer than predicted by up to this (uniform); 0 = the decay's verdict alone (docs/spyloc.md)."),
       float_param("init_window_s", 1.5, 0.1, 30.0, "s", "LoS ranges of >= 3 beacons within this make the first fix."),
       int_param("reinit_after", std::int64_t{3}, 1, 1000, "", "Gated-out LoS ranges among the last 2x this many after which a new fix replaces the track."),
       float_param("accel_std_mps2", 0.6, 0.01, 50.0, "m/s^2", "White acceleration of the constant-velocity tracker."),

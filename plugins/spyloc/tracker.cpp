@@ -64,7 +64,26 @@ bool range_update(Eigen::Vector4d& x, Eigen::Matrix4d& P, const Eigen::RowVector
   return true;
 }
 
+/// The slant range from (x, y) at height z to beacon b and its variance under P (either tracker).
+RangePrediction predicted_range(const Eigen::Vector4d& x, const Eigen::Matrix4d& P, const std::array<double, 3>& b,
+                                double z_m) {
+  const Eigen::Vector3d d(x(0) - b[0], x(1) - b[1], z_m - b[2]);
+  const double r = std::max(d.norm(), 1e-6);
+  Eigen::RowVector4d H = Eigen::RowVector4d::Zero();
+  H(0) = d.x() / r;
+  H(1) = d.y() / r;
+  return {r, std::max(0.0, (H * P * H.transpose())(0, 0))};
+}
+
 }  // namespace
+
+RangePrediction Tracker::predict_range(const std::array<double, 3>& b, double z_m) const {
+  return predicted_range(x_, P_, b, z_m);
+}
+
+RangePrediction PdrTracker::predict_range(const std::array<double, 3>& b, double z_m) const {
+  return predicted_range(x_, P_, b, z_m);
+}
 
 bool Tracker::update_range(const std::array<double, 3>& b, double z_m, double range_m, double std_m, double& nis) {
   const Eigen::Vector3d d(x_(0) - b[0], x_(1) - b[1], z_m - b[2]);

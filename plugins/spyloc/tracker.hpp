@@ -18,6 +18,14 @@
 
 namespace locus::plugins::spyloc {
 
+/// What a track predicts for a range before it is measured: the slant range from the track's position
+/// and its variance (the position covariance along the line of sight; add the range's own variance
+/// for the innovation's).
+struct RangePrediction {
+  double range_m = 0.0;
+  double var_m2 = 0.0;
+};
+
 struct TrackerConfig {
   double accel_std_mps2 = 1.0;  ///< white acceleration of the constant-velocity model
   double max_speed_mps = 2.5;
@@ -42,6 +50,8 @@ class Tracker {
   /// Range update (slant range to `beacon` with the device at height z). Returns false when gated out
   /// (the filter is unchanged); `nis` receives the normalised innovation squared.
   bool update_range(const std::array<double, 3>& beacon, double z_m, double range_m, double std_m, double& nis);
+  /// The range to `beacon` this track predicts now (no update).
+  RangePrediction predict_range(const std::array<double, 3>& beacon, double z_m) const;
   /// Widens the covariance (lost track: ranges keep disagreeing): position ± pos_std, velocity ± vel_std.
   void inflate(double pos_std_m, double vel_std_mps);
   /// Speed observation (steps): |v| = speed ± std.
@@ -95,6 +105,8 @@ class PdrTracker {
   void step(const std::array<double, 2>& d_m);
   /// As Tracker::update_range.
   bool update_range(const std::array<double, 3>& beacon, double z_m, double range_m, double std_m, double& nis);
+  /// As Tracker::predict_range.
+  RangePrediction predict_range(const std::array<double, 3>& beacon, double z_m) const;
   std::array<double, 2> position() const { return {x_(0), x_(1)}; }
   double position_std() const;
   double psi_rad() const { return x_(2); }

@@ -6,7 +6,8 @@
 #     issue-15 bar (95 % within 2 samples, none > 10 samples off, within 12 m) is NOT met yet
 #     (docs/montage.md).
 #   spyloc: config/spyloc.yaml, tools/scripts/check_spyloc_arrivals.py (LoS beeps: found with the
-#     right identity, first path within 1 sample), bars/spyloc-detection.args (docs/spyloc.md).
+#     right identity, first path within 1 sample; the localizer's LoS/NLoS verdicts, from the
+#     estimates), bars/spyloc-detection.args (docs/spyloc.md).
 #   family_detection.sh LOCUS_BIN SOURCE_DIR SCENES_DIR FAMILY CONFIG CHECKER BARS
 #   (CONFIG, CHECKER and BARS relative to SOURCE_DIR)
 set -euo pipefail
@@ -23,7 +24,7 @@ for sc in "$scenes"/*/; do
   family="$(scene_family "$sc")"
   [ "$family" = "$want" ] || continue
   ran=$((ran + 1))
-  if ! timeout 300 "$locus" replay "$sc" --config "$config" --speed max --events audio_detection \
+  if ! timeout 300 "$locus" replay "$sc" --config "$config" --speed max --events audio_detection,estimate \
        -o "$tmp/$name.jsonl" 2>"$tmp/$name.log"; then
     echo "[$name] locus replay failed:"; tail -20 "$tmp/$name.log"; fail=1; continue
   fi

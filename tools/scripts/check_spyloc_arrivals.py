@@ -7,8 +7,10 @@ usage: check_spyloc_arrivals.py SCENE_DIR DETECTIONS.jsonl [--json] [--device ID
 Why: SpyLoc ranges from one beep's first-path arrival; a beep opened late, with the wrong beacon's
 identity, or timed on an echo (the 4 ms envelope lobes of a 250 Hz tone grid) is a range error of
 metres. So every beep is scored: found with the right identity, and its first-path error in samples,
-split by the truth's LOS / NLOS label (the classifier's verdicts are scored by `locus eval` and
-docs/spyloc.md, not here).
+split by the truth's LOS / NLOS label. When the file also holds the localizer's `estimate` events
+(one per ranged beep, `t_s` = the beep's first-path time on the device's clock, `los` its verdict),
+the verdicts are scored too: each estimate is paired with the beep whose first arrival is nearest
+(same window) and its `los` compared with the beep's label (`verdicts` in the output).
 
 Truth, per beep: the local sample index (fractional) of the first path at the device's microphone.
   * Scene with truth-extra.yaml holding `beeps` (the independent reference generator): each entry's
@@ -28,7 +30,9 @@ Identity: a beacon's tones_hz -> bit k for tone 18000 + 250·k Hz (the detector'
 Matching: every audio_detection of the device is paired with the beep whose first arrival is nearest
 (within --window-s, default 30 ms); each beep keeps its nearest detection; others are `false`.
 Bars (exit status 4 when missed): --min-los-found (fraction of LOS beeps found with the right
-identity) and --min-los-within1 (fraction of those within 1 sample of the first path).
+identity), --min-los-within1 (fraction of those within 1 sample of the first path) and
+--min-verdicts (fraction of the estimates whose LoS/NLoS verdict is the beep's label; missed when the
+file holds no estimate with a verdict).
 Needs python3-numpy and python3-yaml.
 """
 import argparse
@@ -129,6 +133,23 @@ def read_events(path, event_type, device):
     return out
 
 
+def read_events_any(path, event_type):
+    """The events of one type from a JSON-lines file, any device."""
+    out = []
+    with open(path) as f:
+        for ln, line in enumerate(f, 1):
+            line = line.strip()
+            if not line:
+                continue
+            try:
+                ev = json.loads(line)
+            except json.JSONDecodeError as e:
+                sys.exit(f'{path}:{ln}: not JSON ({e})')
+            if ev.get('type') == event_type:
+                out.append(ev)
+    return out
+
+
 def match_detections(beeps, dets, window):
     """Pairs each detection with the beep whose first arrival is nearest (within `window` samples);
     each beep keeps its nearest detection. Returns ({beep index: detection}, unpaired count)."""
@@ -161,6 +182,7 @@ def main():
     ap.add_argument('--list-bad', action='store_true')
     ap.add_argument('--min-los-found', type=float, default=None)
     ap.add_argument('--min-los-within1', type=float, default=None)
+    ap.add_argument('--min-verdicts', type=float, default=None)
     a = ap.parse_args()
 
     with open(os.path.join(a.scene, 'scene.yaml')) as f:
@@ -196,6 +218,21 @@ def main():
             r['err_first_table'] = float(d['frame']) - b['first_table']
         rows.append(r)
 
+    # The localizer's LoS/NLoS verdict per ranged beep (estimate events of the walker).
+    ests = [e for e in read_events_any(a.detections, 'estimate') if e.get('target') == device and e.get('los') is not None]
+    firsts = np.array([b['first'] for b in beeps])
+    vrows = []
+    for e in ests:
+        fr = float(e['t_s']) * fs
+        j = int(np.argmin(np.abs(firsts - fr)))
+        if abs(firsts[j] - fr) <= a.window_s * fs:
+            vrows.append((beeps[j]['los'], bool(e['los'])))
+
+    def verdicts(sel):
+        n = len(sel)
+        ok = sum(1 for truth, said in sel if truth == said)
+        return {'estimates': n, 'right': ok, 'accuracy': ok / n if n else float('nan')}
+
     def summary(sel):
         n = len(sel)
         ok = [r for r in sel if r['found'] and r['identity_ok']]
@@ -210,7 +247,9 @@ def main():
 
     res = {'scene': a.scene, 'device': device, 'detections': len(dets), 'false': false,
            'all': summary(rows), 'los': summary([r for r in rows if r['los']]),
-           'nlos': summary([r for r in rows if not r['los']])}
+           'nlos': summary([r for r in rows if not r['los']]),
+           'verdicts': {'all': verdicts(vrows), 'los': verdicts([v for v in vrows if v[0]]),
+                        'nlos': verdicts([v for v in vrows if not v[0]]), 'unpaired': len(ests) - len(vrows)}}
     if a.json:
         print(json.dumps(res, indent=1))
     else:
@@ -221,6 +260,11 @@ def main():
                   f"({100 * s['found_ok_frac']:.1f} %); of those within 1 sample {s['within1']} "
                   f"({100 * s['within1_frac']:.1f} %) [vs arrival_first table: {s['within1_first_table']}], within 5 {s['within5']}, within 200 {s['within200']}; "
                   f"|err| median {s['median_abs_err']:.2f} p90 {s['p90_abs_err']:.2f} samples")
+        v = res['verdicts']
+        if v['all']['estimates']:
+            print(f"  verdicts: {v['all']['right']}/{v['all']['estimates']} right ({100 * v['all']['accuracy']:.1f} %): "
+                  f"LoS {v['los']['right']}/{v['los']['estimates']}, NLoS {v['nlos']['right']}/{v['nlos']['estimates']}"
+                  f"{', ' + str(v['unpaired']) + ' estimates unpaired' if v['unpaired'] else ''}")
     if a.list_bad:
         for r in rows:
             if not r['found'] or not r['identity_ok'] or abs(r['err']) > 1:
@@ -231,6 +275,10 @@ def main():
         bad = True
     if a.min_los_within1 is not None and not res['los']['within1_frac'] >= a.min_los_within1:
         print(f"BAR MISSED: LOS within 1 sample {res['los']['within1_frac']:.3f} < {a.min_los_within1}")
+        bad = True
+    if a.min_verdicts is not None and not res['verdicts']['all']['accuracy'] >= a.min_verdicts:
+        print(f"BAR MISSED: LoS/NLoS verdicts right {res['verdicts']['all']['accuracy']:.3f} < {a.min_verdicts} "
+              f"({res['verdicts']['all']['estimates']} estimates with a verdict)")
         bad = True
     return 4 if bad else 0
 

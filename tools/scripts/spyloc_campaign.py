@@ -62,18 +62,22 @@ def main():
         if not summ and 'summary' in res:
             summ = res['summary']
         row = {'seed': seed, 'eval': summ,
-               'los_found': d.get('los', {}).get('found_ok_frac'), 'los_within1': d.get('los', {}).get('within1_frac')}
+               'los_found': d.get('los', {}).get('found_ok_frac'), 'los_within1': d.get('los', {}).get('within1_frac'),
+               'verdicts': d.get('verdicts', {})}
         pooled += estimate_errors(sc, est)
         rows.append(row)
         if not a.json:
             print(f"seed {seed:3d}: p90 {summ.get('p90_error_m', float('nan')):.2f} m, median "
                   f"{summ.get('median_error_m', float('nan')):.2f} m, estimates {summ.get('estimates', '?')}, "
                   f"stride p90 {100 * (summ.get('p90_stride_error_m') or float('nan')):.1f} cm; "
-                  f"LoS beeps found {100 * (row['los_found'] or 0):.1f} %, within 1 sample {100 * (row['los_within1'] or 0):.1f} %",
+                  f"LoS beeps found {100 * (row['los_found'] or 0):.1f} %, within 1 sample {100 * (row['los_within1'] or 0):.1f} %; "
+                  f"LoS/NLoS verdicts {100 * (row['verdicts'].get('all', {}).get('accuracy') or float('nan')):.1f} %",
                   flush=True)
     p90s = np.array([r['eval'].get('p90_error_m', np.nan) for r in rows], float)
     strides = np.array([r['eval'].get('p90_stride_error_m') or np.nan for r in rows], float)
-    out = {'seeds': rows, 'stride_p90_worst_m': float(np.nanmax(strides)) if np.isfinite(strides).any() else None, 'median_of_p90_m': float(np.nanmedian(p90s)), 'worst_p90_m': float(np.nanmax(p90s)),
+    verdicts = {k: [sum(r['verdicts'].get(k, {}).get(f, 0) for r in rows) for f in ('right', 'estimates')]
+                for k in ('all', 'los', 'nlos')}
+    out = {'seeds': rows, 'verdicts': verdicts, 'stride_p90_worst_m': float(np.nanmax(strides)) if np.isfinite(strides).any() else None, 'median_of_p90_m': float(np.nanmedian(p90s)), 'worst_p90_m': float(np.nanmax(p90s)),
            'seeds_p90_le_0_8': int(np.sum(p90s <= 0.8)), 'pooled': error_summary(pooled), 'work': work}
     if a.json:
         print(json.dumps(out, indent=1))
@@ -82,6 +86,10 @@ def main():
               f"{out['seeds_p90_le_0_8']} seeds with p90 <= 0.8 m (scenes in {work})")
         if out['stride_p90_worst_m'] is not None:
             print(f"stride error p90 per seed: {100 * np.nanmin(strides):.1f}-{100 * np.nanmax(strides):.1f} cm")
+        v = out['verdicts']
+        if v['all'][1]:
+            print(f"LoS/NLoS verdicts (per estimate vs the beep's label): {v['all'][0]}/{v['all'][1]} "
+                  f"({100 * v['all'][0] / v['all'][1]:.1f} %): LoS {v['los'][0]}/{v['los'][1]}, NLoS {v['nlos'][0]}/{v['nlos'][1]}")
         p = out['pooled']
         if p.get('estimates'):
             print(f"pooled: {p['estimates']} estimates, median {p['median_m']:.2f} m, p90 {p['p90_m']:.2f} m; "

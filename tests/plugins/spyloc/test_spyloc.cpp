@@ -330,6 +330,131 @@ TEST(SpyLocPlugin, EndToEndOnSyntheticEvents) {
   EXPECT_LT(p90, 0.15);
 }
 
+// The published LoS/NLoS verdict weighs the decay's by the track (fuse_los): on a settled track, LoS
+// beeps whose decay looks NLoS are cleared (their ranges agree with the track) and NLoS beeps whose
+// decay looks LoS (3 m too long) are called NLoS. With nlos_excess_max_m 0 (the decay alone) the
+// first kind stays NLoS; the second is still NLoS (gated out as too long).
+TEST(SpyLocPlugin, TheTrackCorrectsTheDecayVerdict) {
+  test::TestHost host;
+  FftwPlanner fftw({}, false);
+  const test::SpyLocBeacons beacons;
+  const auto& b = beacons.anchors_m;
+  const DeviceGeometry& g = beacons.geometry;
+  std::vector<DecayVector> los(40), nlos(40);
+  std::mt19937 rng(9);
+  std::normal_distribution<double> nz(0.0, 0.01);  // overlapping classes: P(LoS) varies smoothly between them
+  for (auto& v : los)
+    for (std::size_t k = 0; k < kDecayFeatures; ++k) v[k] = static_cast<float>(0.003 * (k + 1) + nz(rng));
+  for (auto& v : nlos)
+    for (std::size_t k = 0; k < kDecayFeatures; ++k) v[k] = static_cast<float>(0.03 * (k + 1) + nz(rng));
+  LosClassifier c;
+  c.train(los, nlos, 2);
+  const std::string model = (std::filesystem::temp_directory_path() / "locus_spyloc_verdict_model.yaml").string();
+  c.save(model, "test");
+  // A decay between the classes that the model calls NLoS, but not beyond doubt (5-50 % LoS): what the
+  // real classifier says of a far LoS beep's long tail.
+  auto decay_of = [](double scale) {
+    DecayVector v{};
+    for (std::size_t q = 0; q < kDecayFeatures; ++q) v[q] = static_cast<float>(scale * (q + 1));
+    return v;
+  };
+  double misread_scale = 0.0;
+  for (double sc = 0.003; sc < 0.03 && misread_scale == 0.0; sc += 0.0001) {
+    const double pl = c.p_los(decay_of(sc));
+    if (pl < 0.5 && pl > 0.05) misread_scale = sc;
+  }
+  ASSERT_GT(misread_scale, 0.0);
+  std::printf("decay scale %.5f s: P(LoS) %.3f from the decay\n", misread_scale, c.p_los(decay_of(misread_scale)));
+  struct Counts {
+    int misread_los = 0, misread_los_cleared = 0, misread_nlos = 0, misread_nlos_caught = 0;
+  };
+  auto run = [&](double excess_max_m) {
+    std::unique_ptr<Localizer> loc(descriptor()->create_localizer());
+    Params p = Params::defaults(schema());
+    p.set("los_model", model);
+    p.set("speed_of_sound_mps", 343.0);
+    p.set("nlos_excess_max_m", excess_max_m);
+    HostContext ctx{host.log, host.clock, fftw, host.link, "spyloc", "W", &g};
+    loc->configure(p, ctx);
+    Pub out;
+    Counts n;
+    for (int k = 0; k < 120; ++k) {
+      const double t = 0.5 + 0.333 * k;
+      const int i = k % 3;
+      const std::array<double, 2> w = {4.0 + 0.2 * t, 4.0 + 0.05 * t};
+      const double r = std::sqrt(std::pow(w[0] - b[i][0], 2) + std::pow(w[1] - b[i][1], 2) + std::pow(1.2 - b[i][2], 2));
+      // After the track settles: every 5th beep a LoS one that decays like NLoS, every 7th an NLoS
+      // one (3 m long) that decays like LoS.
+      const bool misread_los = k > 20 && k % 5 == 2, misread_nlos = k > 20 && k % 7 == 3 && !misread_los;
+      RadioSync s;
+      s.device = DeviceId("W");
+      s.t_s = t;
+      s.source = NameTag("B" + std::to_string(i + 1));
+      loc->on_event(Event{s}, out);
+      AudioDetection d;
+      d.device = DeviceId("W");
+      d.sample_rate_hz = 44100.0;
+      d.frame = (t + 0.05 + (r + (misread_nlos ? 3.0 : 0.0)) / 343.0) * 44100.0;
+      d.template_index = beacons.mask(static_cast<std::size_t>(i));
+      loc->on_event(Event{d}, out);
+      DecayFeatures f;
+      f.device = d.device;
+      f.frame = d.frame;
+      f.decay_s = decay_of(misread_los ? misread_scale : 0.003);
+      const std::size_t before = out.est.size();
+      loc->on_event(Event{f}, out);
+      if (out.est.size() == before) continue;
+      const Estimate& e = out.est.back();
+      if (misread_los) {
+        ++n.misread_los;
+        n.misread_los_cleared += e.los == 1;
+      }
+      if (misread_nlos) {
+        ++n.misread_nlos;
+        n.misread_nlos_caught += e.los == 0;
+      }
+    }
+    loc->finish(out);
+    return n;
+  };
+  const Counts fused = run(8.0), decay_only = run(0.0);
+  std::filesystem::remove(model);
+  std::printf("LoS beeps misread as NLoS: %d/%d cleared by the track (%d/%d by the decay alone); NLoS misread as LoS: "
+              "%d/%d caught (%d/%d)\n",
+              fused.misread_los_cleared, fused.misread_los, decay_only.misread_los_cleared, decay_only.misread_los,
+              fused.misread_nlos_caught, fused.misread_nlos, decay_only.misread_nlos_caught, decay_only.misread_nlos);
+  ASSERT_GE(fused.misread_los, 15);
+  ASSERT_GE(fused.misread_nlos, 10);
+  EXPECT_EQ(fused.misread_los_cleared, fused.misread_los);
+  EXPECT_EQ(fused.misread_nlos_caught, fused.misread_nlos);
+  EXPECT_EQ(decay_only.misread_los_cleared, 0);
+  EXPECT_EQ(decay_only.misread_nlos_caught, decay_only.misread_nlos);
+}
+
+TEST(SpyLocClassifier, FuseLosWeighsTheInnovation) {
+  // On the track (ν = 0, σ 0.2 m): a beep the decay gives 20 % becomes LoS.
+  EXPECT_GT(fuse_los(0.2, 0.0, 0.2, 8.0), 0.7);
+  // 3 m longer than the track predicts: NLoS even at 95 % from the decay.
+  EXPECT_LT(fuse_los(0.95, 3.0, 0.2, 8.0), 0.01);
+  // Beyond the largest NLoS excess, or far shorter than predicted: neither class explains it; the
+  // decay's answer stands.
+  EXPECT_DOUBLE_EQ(fuse_los(0.3, -60.0, 0.2, 8.0), 0.3);
+  // A vague track says little: ν = 0 with σ 5 m moves 20 % by less than a factor 2 of the odds.
+  const double vague = fuse_los(0.2, 0.0, 5.0, 8.0);
+  EXPECT_GT(vague, 0.2);
+  EXPECT_LT(vague / (1 - vague), 2.0 * 0.25);
+  // Off: the decay's alone.
+  EXPECT_DOUBLE_EQ(fuse_los(0.2, 0.0, 0.2, 0.0), 0.2);
+  EXPECT_DOUBLE_EQ(fuse_los(0.2, std::nan(""), 0.2, 8.0), 0.2);
+  // Monotone: the longer the range against the track, the less LoS.
+  double prev = 1.0;
+  for (double nu = 0.0; nu <= 4.0; nu += 0.25) {
+    const double p = fuse_los(0.5, nu, 0.3, 8.0);
+    EXPECT_LE(p, prev + 1e-12) << nu;
+    prev = p;
+  }
+}
+
 // Dead reckoning in the plugin: three beacons heard for 8 s, then only one for 22 s while the walker
 // turns twice. The steps (in a frame rotated by an unknown 0.7 rad, strides 10 % long) carry the
 // track through the turns; the constant-velocity tracker (dead_reckoning: false, same events) cannot.
