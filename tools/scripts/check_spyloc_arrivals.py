@@ -10,7 +10,8 @@ metres. So every beep is scored: found with the right identity, and its first-pa
 split by the truth's LOS / NLOS label. When the file also holds the localizer's `estimate` events
 (one per ranged beep, `t_s` = the beep's first-path time on the device's clock, `los` its verdict),
 the verdicts are scored too: each estimate is paired with the beep whose first arrival is nearest
-(same window) and its `los` compared with the beep's label (`verdicts` in the output).
+(within --verdict-window-s, default 80 ms: an NLoS beep may be timed on a reflection 40 ms late;
+beeps come 0.25 s apart or more) and its `los` compared with the beep's label (`verdicts`).
 
 Truth, per beep: the local sample index (fractional) of the first path at the device's microphone.
   * Scene with truth-extra.yaml holding `beeps` (the independent reference generator): each entry's
@@ -183,6 +184,7 @@ def main():
     ap.add_argument('--min-los-found', type=float, default=None)
     ap.add_argument('--min-los-within1', type=float, default=None)
     ap.add_argument('--min-verdicts', type=float, default=None)
+    ap.add_argument('--verdict-window-s', type=float, default=0.08)
     a = ap.parse_args()
 
     with open(os.path.join(a.scene, 'scene.yaml')) as f:
@@ -225,7 +227,7 @@ def main():
     for e in ests:
         fr = float(e['t_s']) * fs
         j = int(np.argmin(np.abs(firsts - fr)))
-        if abs(firsts[j] - fr) <= a.window_s * fs:
+        if abs(firsts[j] - fr) <= a.verdict_window_s * fs:
             vrows.append((beeps[j]['los'], bool(e['los'])))
 
     def verdicts(sel):
