@@ -117,8 +117,8 @@ def beeps_from_geometry(scene_dir, scene, device):
     return out
 
 
-def read_events(path, event_type, device):
-    """The events of one type and device from a JSON-lines file (exits naming the bad line)."""
+def read_events(path, event_type, device=None):
+    """The events of one type (and device, when given) from a JSON-lines file (exits naming the bad line)."""
     out = []
     with open(path) as f:
         for ln, line in enumerate(f, 1):
@@ -129,24 +129,7 @@ def read_events(path, event_type, device):
                 ev = json.loads(line)
             except json.JSONDecodeError as e:
                 sys.exit(f'{path}:{ln}: not JSON ({e})')
-            if ev.get('type') == event_type and ev.get('device') == device:
-                out.append(ev)
-    return out
-
-
-def read_events_any(path, event_type):
-    """The events of one type from a JSON-lines file, any device."""
-    out = []
-    with open(path) as f:
-        for ln, line in enumerate(f, 1):
-            line = line.strip()
-            if not line:
-                continue
-            try:
-                ev = json.loads(line)
-            except json.JSONDecodeError as e:
-                sys.exit(f'{path}:{ln}: not JSON ({e})')
-            if ev.get('type') == event_type:
+            if ev.get('type') == event_type and (device is None or ev.get('device') == device):
                 out.append(ev)
     return out
 
@@ -221,7 +204,7 @@ def main():
         rows.append(r)
 
     # The localizer's LoS/NLoS verdict per ranged beep (estimate events of the walker).
-    ests = [e for e in read_events_any(a.detections, 'estimate') if e.get('target') == device and e.get('los') is not None]
+    ests = [e for e in read_events(a.detections, 'estimate') if e.get('target') == device and e.get('los') is not None]
     firsts = np.array([b['first'] for b in beeps])
     vrows = []
     for e in ests:

@@ -258,6 +258,53 @@ struct Pub : Publisher {
   }
 };
 
+/// Decay features growing by scale_s per 5 dB (T5 = scale, T10 = 2·scale, ...).
+DecayVector decay_of(double scale_s) {
+  DecayVector v{};
+  for (std::size_t q = 0; q < kDecayFeatures; ++q) v[q] = static_cast<float>(scale_s * (q + 1));
+  return v;
+}
+
+/// A classifier that knows short decays (3 ms per 5 dB) = LoS and long ones (30 ms) = NLoS, 40 beeps
+/// of each with feature noise noise_sd_s, written to a temporary model file (returned).
+std::string two_class_model(double noise_sd_s, const std::string& name, LosClassifier& c) {
+  std::vector<DecayVector> los(40), nlos(40);
+  std::mt19937 rng(9);
+  std::normal_distribution<double> nz(0.0, noise_sd_s);
+  for (auto& v : los)
+    for (std::size_t k = 0; k < kDecayFeatures; ++k) v[k] = static_cast<float>(0.003 * (k + 1) + nz(rng));
+  for (auto& v : nlos)
+    for (std::size_t k = 0; k < kDecayFeatures; ++k) v[k] = static_cast<float>(0.03 * (k + 1) + nz(rng));
+  c.train(los, nlos, 2);
+  const std::string model = (std::filesystem::temp_directory_path() / name).string();
+  c.save(model, "test");
+  return model;
+}
+
+/// One beep of beacon i as the localizer receives it: its radio sync at t (unless lost), the
+/// detection at t + 50 ms + range/c, then its decay features.
+void send_beep(Localizer& loc, Pub& out, const test::SpyLocBeacons& beacons, int i, double t, double range_m,
+               bool sync_heard, const DecayVector& decay) {
+  if (sync_heard) {
+    RadioSync s;
+    s.device = DeviceId("W");
+    s.t_s = t;
+    s.source = NameTag("B" + std::to_string(i + 1));
+    loc.on_event(Event{s}, out);
+  }
+  AudioDetection d;
+  d.device = DeviceId("W");
+  d.sample_rate_hz = 44100.0;
+  d.frame = (t + 0.05 + range_m / 343.0) * 44100.0;
+  d.template_index = beacons.mask(static_cast<std::size_t>(i));
+  loc.on_event(Event{d}, out);
+  DecayFeatures f;
+  f.device = d.device;
+  f.frame = d.frame;
+  f.decay_s = decay;
+  loc.on_event(Event{f}, out);
+}
+
 // Three beacons, a walker on a line; each beep: sync at t, beep at t + delay + r/c (+ 3 m for the
 // NLoS ones, which carry long decay features), some syncs lost.
 TEST(SpyLocPlugin, EndToEndOnSyntheticEvents) {
@@ -266,18 +313,8 @@ TEST(SpyLocPlugin, EndToEndOnSyntheticEvents) {
   const test::SpyLocBeacons beacons;
   const auto& b = beacons.anchors_m;
   const DeviceGeometry& g = beacons.geometry;
-  // A classifier that knows short decays = LoS.
-  std::vector<DecayVector> los(40), nlos(40);
-  std::mt19937 rng(9);
-  std::normal_distribution<double> nz(0.0, 0.002);
-  for (auto& v : los)
-    for (std::size_t k = 0; k < kDecayFeatures; ++k) v[k] = static_cast<float>(0.003 * (k + 1) + nz(rng));
-  for (auto& v : nlos)
-    for (std::size_t k = 0; k < kDecayFeatures; ++k) v[k] = static_cast<float>(0.03 * (k + 1) + nz(rng));
   LosClassifier c;
-  c.train(los, nlos, 2);
-  const std::string model = (std::filesystem::temp_directory_path() / "locus_spyloc_plugin_model.yaml").string();
-  c.save(model, "test");
+  const std::string model = two_class_model(0.002, "locus_spyloc_plugin_model.yaml", c);
 
   std::unique_ptr<Localizer> loc(descriptor()->create_localizer());
   Params p = Params::defaults(schema());
@@ -286,7 +323,6 @@ TEST(SpyLocPlugin, EndToEndOnSyntheticEvents) {
   HostContext ctx{host.log, host.clock, fftw, host.link, "spyloc", "W", &g};
   loc->configure(p, ctx);
   Pub out;
-  auto mask = [&](int i) { return beacons.mask(static_cast<std::size_t>(i)); };
   std::vector<double> errs;
   for (int k = 0; k < 120; ++k) {
     const double t = 0.5 + 0.333 * k;
@@ -294,29 +330,12 @@ TEST(SpyLocPlugin, EndToEndOnSyntheticEvents) {
     const std::array<double, 2> w = {4.0 + 0.4 * t, 4.0 + 0.1 * t};
     const double r = std::sqrt(std::pow(w[0] - b[i][0], 2) + std::pow(w[1] - b[i][1], 2) + std::pow(1.2 - b[i][2], 2));
     const bool nlos_beep = k % 7 == 3, lost = k % 11 == 5;
-    if (!lost) {
-      RadioSync s;
-      s.device = DeviceId("W");
-      s.t_s = t;
-      s.source = NameTag("B" + std::to_string(i + 1));
-      loc->on_event(Event{s}, out);
-    }
-    AudioDetection d;
-    d.device = DeviceId("W");
-    d.sample_rate_hz = 44100.0;
-    d.frame = (t + 0.05 + (r + (nlos_beep ? 3.0 : 0.0)) / 343.0) * 44100.0;
-    d.template_index = mask(i);
-    loc->on_event(Event{d}, out);
-    DecayFeatures f;
-    f.device = d.device;
-    f.frame = d.frame;
-    for (std::size_t q = 0; q < kDecayFeatures; ++q) f.decay_s[q] = static_cast<float>((nlos_beep ? 0.03 : 0.003) * (q + 1));
     const std::size_t before = out.est.size();
-    loc->on_event(Event{f}, out);
+    send_beep(*loc, out, beacons, i, t, r + (nlos_beep ? 3.0 : 0.0), !lost, decay_of(nlos_beep ? 0.03 : 0.003));
     if (out.est.size() > before) {
       const Estimate& e = out.est.back();
       EXPECT_EQ(e.los, nlos_beep ? 0 : 1) << k;
-      const double tt = d.frame / 44100.0;
+      const double tt = t + 0.05 + (r + (nlos_beep ? 3.0 : 0.0)) / 343.0;
       const std::array<double, 2> wt = {4.0 + 0.4 * (tt - 0.05 - r / 343.0), 4.0 + 0.1 * (tt - 0.05 - r / 343.0)};
       if (k > 20) errs.push_back(std::hypot(e.position_m[0] - wt[0], e.position_m[1] - wt[1]));
     }
@@ -340,24 +359,10 @@ TEST(SpyLocPlugin, TheTrackCorrectsTheDecayVerdict) {
   const test::SpyLocBeacons beacons;
   const auto& b = beacons.anchors_m;
   const DeviceGeometry& g = beacons.geometry;
-  std::vector<DecayVector> los(40), nlos(40);
-  std::mt19937 rng(9);
-  std::normal_distribution<double> nz(0.0, 0.01);  // overlapping classes: P(LoS) varies smoothly between them
-  for (auto& v : los)
-    for (std::size_t k = 0; k < kDecayFeatures; ++k) v[k] = static_cast<float>(0.003 * (k + 1) + nz(rng));
-  for (auto& v : nlos)
-    for (std::size_t k = 0; k < kDecayFeatures; ++k) v[k] = static_cast<float>(0.03 * (k + 1) + nz(rng));
-  LosClassifier c;
-  c.train(los, nlos, 2);
-  const std::string model = (std::filesystem::temp_directory_path() / "locus_spyloc_verdict_model.yaml").string();
-  c.save(model, "test");
+  LosClassifier c;  // overlapping classes: P(LoS) varies smoothly between them
+  const std::string model = two_class_model(0.01, "locus_spyloc_verdict_model.yaml", c);
   // A decay between the classes that the model calls NLoS, but not beyond doubt (5-50 % LoS): what the
   // real classifier says of a far LoS beep's long tail.
-  auto decay_of = [](double scale) {
-    DecayVector v{};
-    for (std::size_t q = 0; q < kDecayFeatures; ++q) v[q] = static_cast<float>(scale * (q + 1));
-    return v;
-  };
   double misread_scale = 0.0;
   for (double sc = 0.003; sc < 0.03 && misread_scale == 0.0; sc += 0.0001) {
     const double pl = c.p_los(decay_of(sc));
@@ -386,23 +391,9 @@ TEST(SpyLocPlugin, TheTrackCorrectsTheDecayVerdict) {
       // After the track settles: every 5th beep a LoS one that decays like NLoS, every 7th an NLoS
       // one (3 m long) that decays like LoS.
       const bool misread_los = k > 20 && k % 5 == 2, misread_nlos = k > 20 && k % 7 == 3 && !misread_los;
-      RadioSync s;
-      s.device = DeviceId("W");
-      s.t_s = t;
-      s.source = NameTag("B" + std::to_string(i + 1));
-      loc->on_event(Event{s}, out);
-      AudioDetection d;
-      d.device = DeviceId("W");
-      d.sample_rate_hz = 44100.0;
-      d.frame = (t + 0.05 + (r + (misread_nlos ? 3.0 : 0.0)) / 343.0) * 44100.0;
-      d.template_index = beacons.mask(static_cast<std::size_t>(i));
-      loc->on_event(Event{d}, out);
-      DecayFeatures f;
-      f.device = d.device;
-      f.frame = d.frame;
-      f.decay_s = decay_of(misread_los ? misread_scale : 0.003);
       const std::size_t before = out.est.size();
-      loc->on_event(Event{f}, out);
+      send_beep(*loc, out, beacons, i, t, r + (misread_nlos ? 3.0 : 0.0), true,
+                decay_of(misread_los ? misread_scale : 0.003));
       if (out.est.size() == before) continue;
       const Estimate& e = out.est.back();
       if (misread_los) {
@@ -464,7 +455,6 @@ TEST(SpyLocPlugin, DeadReckoningCarriesTheTrackOnOneBeacon) {
   const test::SpyLocBeacons beacons;
   const auto& b = beacons.anchors_m;
   const DeviceGeometry& g = beacons.geometry;
-  auto mask = [&](int i) { return beacons.mask(static_cast<std::size_t>(i)); };
   // The walk: 1.2 m/s east for 10 s, north for 10 s, west for 10 s; a step every 0.55 s.
   auto phi_at = [](double t) { return t < 10.0 ? 0.0 : t < 20.0 ? M_PI / 2 : M_PI; };
   auto pos_at = [](double t) {
@@ -507,21 +497,7 @@ TEST(SpyLocPlugin, DeadReckoningCarriesTheTrackOnOneBeacon) {
         next_beep += 0.333;
         const auto w = pos_at(t);
         const double r = std::sqrt(std::pow(w[0] - b[i][0], 2) + std::pow(w[1] - b[i][1], 2) + std::pow(1.2 - b[i][2], 2));
-        RadioSync s;
-        s.device = DeviceId("W");
-        s.t_s = t;
-        s.source = NameTag("B" + std::to_string(i + 1));
-        loc->on_event(Event{s}, out);
-        AudioDetection d;
-        d.device = DeviceId("W");
-        d.sample_rate_hz = 44100.0;
-        d.frame = (t + 0.05 + r / 343.0) * 44100.0;
-        d.template_index = mask(i);
-        loc->on_event(Event{d}, out);
-        DecayFeatures f;
-        f.device = d.device;
-        f.frame = d.frame;
-        loc->on_event(Event{f}, out);
+        send_beep(*loc, out, beacons, i, t, r, true, DecayFeatures{}.decay_s);  // no decay: no model, all LoS
       }
     }
     loc->finish(out);
