@@ -101,6 +101,7 @@ class SpyLocLocalizer final : public Localizer {
     dead_reckoning_ = params.get_bool("dead_reckoning");
     n_hyp_ = static_cast<int>(params.get_int("heading_hypotheses"));
     publish_steps_ = params.get_bool("publish_steps");
+    stride_scale_max_std_ = params.get_float("stride_scale_max_std");
     prune_loglik_ = params.get_float("prune_loglik");
     hold_s_ = params.get_float("step_wait_s");
     pdr_std_scale_ = params.get_float("pdr_std_scale");
@@ -195,7 +196,11 @@ class SpyLocLocalizer final : public Localizer {
         if (publish_steps_) {  // the step again, its stride scaled by what ranging learnt (k)
           Step calibrated = *st;
           calibrated.detector = NameTag(instance_);
-          if (pdr_active()) calibrated.stride_m = static_cast<float>(st->stride_m * hyps_[best_hyp()].tracker.stride_scale());
+          if (pdr_active()) {
+            const PdrTracker& best = hyps_[best_hyp()].tracker;
+            if (best.stride_scale_std() <= stride_scale_max_std_ && pdr_spread_m() <= 1.0)
+              calibrated.stride_m = static_cast<float>(st->stride_m * best.stride_scale());
+          }
           out.publish(Event{calibrated});
         }
       }
@@ -584,6 +589,7 @@ class SpyLocLocalizer final : public Localizer {
   TrackerConfig tcfg_;
   PdrConfig pcfg_;
   bool dead_reckoning_ = true, publish_steps_ = true;
+  double stride_scale_max_std_ = 0.08;
   struct Hypothesis {
     PdrTracker tracker;
     double loglik = 0.0;
@@ -651,6 +657,9 @@ const ParamSchema& schema() {
       bool_param("publish_steps", true,
                  "Dead reckoning: publish each step again (detector = this instance) with its stride scaled by the stride "
                  "scale ranging has learnt so far (unscaled before the first fix)."),
+      float_param("stride_scale_max_std", 0.08, 0.0, 1.0, "",
+                  "Dead reckoning: a published step's stride is scaled by the learnt stride scale k only once k's std is at most "
+                  "this and the heading hypotheses agree (within 1 m); before, the step detector's stride (k = 1, the prior)."),
       float_param("prune_loglik", 15.0, 1.0, 1000.0, "", "Dead reckoning: a hypothesis this far (log-likelihood) below the best is dropped."),
       float_param("step_wait_s", 1.5, 0.0, 10.0, "s",
                   "Dead reckoning: a range waits until the steps up to its time are known, at most this long (a standing walker makes none)."),

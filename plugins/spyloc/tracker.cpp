@@ -178,6 +178,7 @@ bool PdrTracker::update_range(const std::array<double, 3>& b, double z_m, double
 
 double PdrTracker::position_std() const { return std::sqrt(std::max(0.0, P_(0, 0) + P_(1, 1))); }
 double PdrTracker::psi_std_rad() const { return std::sqrt(std::max(0.0, P_(2, 2))); }
+double PdrTracker::stride_scale_std() const { return std::sqrt(std::max(0.0, P_(3, 3))); }
 
 Alignment align_paths(const std::vector<std::array<double, 2>>& dr, const std::vector<std::array<double, 2>>& track) {
   Alignment a;

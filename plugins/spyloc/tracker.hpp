@@ -112,6 +112,7 @@ class PdrTracker {
   double psi_rad() const { return x_(2); }
   double psi_std_rad() const;
   double stride_scale() const { return x_(3); }
+  double stride_scale_std() const;
   /// Innovation variance of the last update_range() call (m²).
   double last_innovation_var() const { return last_S_; }
 

@@ -253,8 +253,10 @@ TEST(SpyLocPdrTracker, StepsAndSingleRangesLearnHeadingAndStride) {
 
 struct Pub : Publisher {
   std::vector<Estimate> est;
+  std::vector<Step> steps;  ///< the steps the localizer publishes again (stride scaled by what it learnt)
   void publish(const Event& e) override {
     if (const auto* x = std::get_if<Estimate>(&e)) est.push_back(*x);
+    if (const auto* x = std::get_if<Step>(&e)) steps.push_back(*x);
   }
 };
 
@@ -462,7 +464,7 @@ TEST(SpyLocPlugin, DeadReckoningCarriesTheTrackOnOneBeacon) {
     return std::array<double, 2>{5.0 + 1.2 * a - 1.2 * w, 3.0 + 1.2 * n};
   };
   const double psi = 0.7, stride_bias = 1.1;
-  auto run = [&](bool dead_reckoning) {
+  auto run = [&](bool dead_reckoning, std::vector<Step>* steps_out = nullptr) {
     std::unique_ptr<Localizer> loc(descriptor()->create_localizer());
     Params p = Params::defaults(schema());
     p.set("speed_of_sound_mps", 343.0);
@@ -507,15 +509,22 @@ TEST(SpyLocPlugin, DeadReckoningCarriesTheTrackOnOneBeacon) {
       late.push_back(std::hypot(e.position_m[0] - w[0], e.position_m[1] - w[1]));
     }
     std::sort(late.begin(), late.end());
+    if (steps_out) *steps_out = out.steps;
     return late;
   };
-  const auto pdr = run(true), cv = run(false);
+  std::vector<Step> published;
+  const auto pdr = run(true, &published), cv = run(false);
   ASSERT_GT(pdr.size(), 50u);
   ASSERT_GT(cv.size(), 50u);
   const double pdr_p90 = pdr[pdr.size() * 9 / 10], cv_p90 = cv[cv.size() * 9 / 10];
   std::printf("one beacon for 22 s, two turns: p90 error %.2f m with dead reckoning, %.2f m without\n", pdr_p90, cv_p90);
   EXPECT_LT(pdr_p90, 0.5);
   EXPECT_LT(pdr_p90, 0.5 * cv_p90);
+  // The steps published again: the detector's stride (10 % long) until ranging has learnt the scale k
+  // (its std <= stride_scale_max_std), then scaled to the true 0.66 m.
+  ASSERT_GT(published.size(), 40u);
+  EXPECT_FLOAT_EQ(published.front().stride_m, static_cast<float>(0.66 * stride_bias));
+  for (std::size_t i = published.size() - 10; i < published.size(); ++i) EXPECT_NEAR(published[i].stride_m, 0.66, 0.02) << i;
 }
 
 TEST(SpyLocPlugin, BadSetupsAreClearErrors) {
