@@ -224,7 +224,9 @@ class SpyLocLocalizer final : public Localizer {
     flush_ranges(out, true);
     if (log_) {
       log_->info("spyloc " + instance_ + ": " + std::to_string(beeps_) + " beeps, " + std::to_string(no_sync_) +
-                 " without a sync, " + std::to_string(nlos_) + " NLoS, " + std::to_string(gated_) + " LoS ranges gated out, " +
+                 " without a sync, " + std::to_string(nlos_) + " NLoS (" + std::to_string(too_long_) +
+                 " of them too long for the track), " + std::to_string(cleared_) + " cleared as LoS by the track, " +
+                 std::to_string(gated_) + " ranges gated out, " +
                  std::to_string(inits_) + " fixes, " + std::to_string(published_) + " estimates");
       if (pdr_active()) {
         const PdrTracker& t = hyps_[best_hyp()].tracker;
@@ -275,6 +277,7 @@ class SpyLocLocalizer final : public Localizer {
     const double pl = tracker_.initialised() ? verdict(pl_decay, tracker_.predict_range(b.anchor, z_), range, var) : pl_decay;
     bool los = pl >= los_thr_;
     if (!los) ++nlos_;
+    if (los && pl_decay < los_thr_) ++cleared_;
     // An uncertain verdict carries the NLoS bias it may hide as variance: + (1 − P(LoS))·nlos_bias_m².
     const double sd = std::sqrt(var + (1.0 - pl) * nlos_bias_m_ * nlos_bias_m_);
     bool gated = false;
@@ -301,6 +304,7 @@ class SpyLocLocalizer final : public Localizer {
           if (range > predicted) {
             los = false;
             ++nlos_;
+            ++too_long_;
           }
           // Lost: reinit_after gated-out LoS ranges among the last 2·reinit_after (a track in a mirror
           // image keeps agreeing with the beacons of one line, so consecutive counts would miss it):
@@ -388,6 +392,7 @@ class SpyLocLocalizer final : public Localizer {
       const double pl = verdict(m.p_los_decay, hyps_[best_hyp()].tracker.predict_range(bp, z_), m.range_m, m.range_var_m2);
       m.los = pl >= los_thr_;
       if (!m.los) ++nlos_;
+      if (m.los && m.p_los_decay < los_thr_) ++cleared_;
       m.std_m = std::sqrt(m.range_var_m2 + (1.0 - pl) * nlos_bias_m_ * nlos_bias_m_);
     }
     bool gated = false;
@@ -415,6 +420,7 @@ class SpyLocLocalizer final : public Localizer {
       if (b_long) {  // gated out as too long: not used as LoS, and the verdict says so
         m.los = false;
         ++nlos_;
+        ++too_long_;
       }
       hyps_ = std::move(kept);
       // A range longer than the best track allows is what an NLoS beep the classifier missed looks
@@ -614,6 +620,7 @@ class SpyLocLocalizer final : public Localizer {
   bool have_last_ = false;
   std::array<double, 2> last_xy_{};
   std::deque<bool> recent_;  ///< last LoS ranges: gated out?
+  std::uint64_t cleared_ = 0, too_long_ = 0;  ///< verdicts the track changed (docs/spyloc.md "LoS/NLoS verdict")
   std::uint64_t beeps_ = 0, no_sync_ = 0, nlos_ = 0, gated_ = 0, inits_ = 0, published_ = 0, unknown_ = 0;
 };
 
