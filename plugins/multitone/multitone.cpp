@@ -71,6 +71,7 @@ struct Channel {
   std::uint64_t open_frame = 0;
   std::uint64_t last_open = 0;
   bool opened_once = false;
+  bool last_body_short = false;  // the last body was active for less than half a beep: a blip, not a beep
   std::array<Pending, kMaxPending> pending{};
   std::size_t pend_head = 0, pend_n = 0;
   std::uint64_t start_frame = 0;  // first valid frame since restart
@@ -378,9 +379,17 @@ class MultitoneDetector final : public Detector {
         std::copy(pow_.begin(), pow_.end(), ch.body.begin() + static_cast<std::ptrdiff_t>(ch.body_hops * tones_.size()));
       ++ch.body_hops;
       ch.quiet_hops = active ? 0 : ch.quiet_hops + 1;
-      if (ch.quiet_hops >= 2 || ch.end_frame - ch.open_frame > len_) close_body(ch);
+      if (ch.quiet_hops >= 2 || ch.end_frame - ch.open_frame > len_) {
+        ch.last_body_short =
+            ch.quiet_hops >= 2 && 2 * static_cast<std::size_t>(ch.body_hops - ch.quiet_hops) * hop_ < len_;  // active hops
+        close_body(ch);
+      }
     } else if (active && (!ch.was_active || rising) &&
-               (!ch.opened_once || ch.end_frame - ch.last_open > len_ + frame_)) {
+               (!ch.opened_once || ch.end_frame - ch.last_open > len_ + frame_ || (ch.last_body_short && rising))) {
+      // A new beep opens a beep's length after the last one opened (its own tail and echoes must not
+      // open another), or sooner on a clear rise when the last body was a blip, active for less than
+      // half a beep (an interferer's burst just before a beep: spyloc-104's beeps 101 and 102, 33 dB
+      // over the floor, were lost behind babble blips 2000 samples earlier).
       ch.in_body = true;
       ch.opened_once = true;
       ch.open_frame = ch.end_frame;
@@ -552,12 +561,21 @@ class MultitoneDetector final : public Detector {
     std::copy(stat_.begin(), stat_.begin() + static_cast<std::ptrdiff_t>(nn), sorted_.begin());
     std::nth_element(sorted_.begin(), sorted_.begin() + static_cast<std::ptrdiff_t>(nn / 2), sorted_.begin() + static_cast<std::ptrdiff_t>(nn));
     const double noise = std::max(sorted_[nn / 2] / std::log(2.0), 1e-30);  // exponential: mean = median / ln 2
+    // The leading edge: the first lag over the threshold that the beep's energy follows — at least half
+    // of the next 3 onset lengths stay within 6 dB of the threshold. A burst shorter than that (an
+    // interferer's blip in the search window) is not a beep's start.
     std::size_t edge = lags;
-    for (std::size_t l = noise_len_; l < lags; ++l)
-      if (stat_[l] > onset_thr_ * noise) {
+    const std::size_t sustain = 3 * onset_len_;
+    for (std::size_t l = noise_len_; l < lags; ++l) {
+      if (!(stat_[l] > onset_thr_ * noise)) continue;
+      const std::size_t end = std::min(lags, l + sustain);
+      std::size_t on = 0;
+      for (std::size_t q = l; q < end; ++q) on += stat_[q] > 0.25 * onset_thr_ * noise;
+      if (end - l < sustain || 2 * on >= end - l) {
         edge = l;
         break;
       }
+    }
     if (edge == lags) {
       ++rejected_;
       return;

@@ -16,8 +16,11 @@
 //   2. opening: a beep opens when the tone set becomes active (min_tones tones threshold_db above
 //      their floors, or the summed normalised power beyond K + 7·sqrt(K)) after being inactive, or
 //      when the summed power rises by rise_db within 3 hops (a beep on top of the previous one's
-//      tail). A beep's body closes after two quiet hops or duration_s + frame_s; closed beeps queue
-//      (up to 8) for analysis, so a new beep opens however close the previous one;
+//      tail). A new body opens a beep's length after the last one opened (its own tail must not open
+//      another), sooner on such a rise when the last body was a blip active for less than half a beep
+//      (an interferer's burst just before a beep). A beep's body closes after two quiet hops or
+//      duration_s + frame_s; closed beeps queue (up to 8) for analysis, so a new beep opens however
+//      close the previous one;
 //   3. identity: per tone, the median tone-bank power over the body frames; tone k is on when it
 //      exceeds its floor by identity_db (a mean over many frames, so lower than threshold_db) and
 //      lies within relative_db of the strongest tone. With
@@ -27,8 +30,10 @@
 //   4. first path: onset statistic c(τ) = |<y, o(·−τ)>|² with o the identity's first 1/Δf seconds
 //      (Δf the tone spacing: one period of the tone grid, cos and sin parts), by FFT over the search
 //      range; its noise level from the 20 ms before the search range; the earliest lag where c
-//      exceeds onset_threshold_db above that noise marks the leading edge (so a weak diffracted
-//      first path, 20-30 dB under later echoes, is still found when it clears the noise). Then a
+//      exceeds onset_threshold_db above that noise, and stays within 6 dB of it over at least half
+//      of the next 3 onset lengths (a blip in the search window is not a beep's start), marks the
+//      leading edge (so a weak diffracted first path, 20-30 dB under later echoes, is still found
+//      when it clears the noise). Then a
 //      least-squares fit of the beep's onset a·s(t−τ) (complex amplitude: cos and sin templates,
 //      template zero before τ) over a window fixed for all candidates τ of a pass, ending
 //      fit_window_s after the current estimate: maximise the projected (explained) energy over τ on a
