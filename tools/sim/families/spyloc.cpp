@@ -50,6 +50,8 @@ Simulation make_spyloc(const FamilyOptions& opts) {
   const double sync_jitter_s = opts.get_double("sync_jitter_s", 100e-6, 0.0, 0.01);
   const int laps = static_cast<int>(opts.get_int("laps", 1, 1, 5));
   const bool partition = opts.get_int("partition", 1, 0, 1) == 1;
+  const std::string bursts = opts.get_choice("bursts", "white", {"white", "babble", "music", "mixed"});
+  const double bursts_per_minute = opts.get_double("bursts_per_minute", -1.0, -1.0, 60.0);
   opts.finish("spyloc");
 
   Simulation sim;
@@ -59,6 +61,17 @@ Simulation make_spyloc(const FamilyOptions& opts) {
   sim.acoustics.room = Room{};
   sim.acoustics.room->size_m = {24.0, 16.0, 3.5};
   apply_profile(prof, sim.acoustics);
+  // Interferers (the foreign spyloc-104: babble and music, 1.5-3 s, ~4 a minute, up to 20 kHz):
+  // `bursts` babble / music / mixed instead of the profile's white bursts.
+  if (bursts_per_minute >= 0.0) sim.acoustics.noise.bursts_per_minute = bursts_per_minute;
+  if (bursts != "white") {
+    NoiseModel& nm = sim.acoustics.noise;
+    nm.burst_kind = bursts == "babble" ? NoiseModel::BurstKind::Babble
+                    : bursts == "music" ? NoiseModel::BurstKind::Music
+                                        : NoiseModel::BurstKind::Mixed;
+    nm.burst_min_s = 0.3;
+    nm.burst_max_s = 3.0;
+  }
   sim.radio_latency_s = 50e-6;  // receive latency unknown to the receiver (tens of µs)
   sim.radio_jitter_s = sync_jitter_s;
   sim.radio_loss_probability = sync_loss;
@@ -195,7 +208,10 @@ const Family& spyloc() {
        {"sync_jitter_s", "double", "1e-4", "uniform +- jitter of the sync reception time"},
        {"laps", "int", "1", "laps of the 16x8 m loop"},
        {"partition", "int", "1", "1: the wall is a floor-to-ceiling partition: reflections whose route crosses it "
-                                 "lose what the direct path loses; 0: only the direct path is obstructed"}},
+                                 "lose what the direct path loses; 0: only the direct path is obstructed"},
+       {"bursts", "white|babble|music|mixed", "white", "noise bursts: white (the difficulty's), or babble / music / "
+                                                        "either (0.3-3 s, energy up to 20 kHz: the foreign spyloc-104's interferers)"},
+       {"bursts_per_minute", "double", "-1", "noise bursts per minute; -1 = the difficulty's"}},
       make_spyloc};
   return family;
 }
