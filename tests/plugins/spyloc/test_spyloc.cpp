@@ -307,14 +307,19 @@ void send_beep(Localizer& loc, Pub& out, const test::SpyLocBeacons& beacons, int
   loc.on_event(Event{f}, out);
 }
 
+/// The plugin tests' world: a test host, an FFT planner, three beacons and the host context made of them.
+class SpyLocPlugin : public ::testing::Test {
+ protected:
+  test::TestHost host;
+  FftwPlanner fftw{{}, false};
+  const test::SpyLocBeacons beacons;
+  HostContext ctx{host.log, host.clock, fftw, host.link, "spyloc", "W", &beacons.geometry};
+};
+
 // Three beacons, a walker on a line; each beep: sync at t, beep at t + delay + r/c (+ 3 m for the
 // NLoS ones, which carry long decay features), some syncs lost.
-TEST(SpyLocPlugin, EndToEndOnSyntheticEvents) {
-  test::TestHost host;
-  FftwPlanner fftw({}, false);
-  const test::SpyLocBeacons beacons;
+TEST_F(SpyLocPlugin, EndToEndOnSyntheticEvents) {
   const auto& b = beacons.anchors_m;
-  const DeviceGeometry& g = beacons.geometry;
   LosClassifier c;
   const std::string model = two_class_model(0.002, "locus_spyloc_plugin_model.yaml", c);
 
@@ -322,7 +327,6 @@ TEST(SpyLocPlugin, EndToEndOnSyntheticEvents) {
   Params p = Params::defaults(schema());
   p.set("los_model", model);
   p.set("speed_of_sound_mps", 343.0);
-  HostContext ctx{host.log, host.clock, fftw, host.link, "spyloc", "W", &g};
   loc->configure(p, ctx);
   Pub out;
   std::vector<double> errs;
@@ -355,12 +359,8 @@ TEST(SpyLocPlugin, EndToEndOnSyntheticEvents) {
 // beeps whose decay looks NLoS are cleared (their ranges agree with the track) and NLoS beeps whose
 // decay looks LoS (3 m too long) are called NLoS. With nlos_excess_max_m 0 (the decay alone) the
 // first kind stays NLoS; the second is still NLoS (gated out as too long).
-TEST(SpyLocPlugin, TheTrackCorrectsTheDecayVerdict) {
-  test::TestHost host;
-  FftwPlanner fftw({}, false);
-  const test::SpyLocBeacons beacons;
+TEST_F(SpyLocPlugin, TheTrackCorrectsTheDecayVerdict) {
   const auto& b = beacons.anchors_m;
-  const DeviceGeometry& g = beacons.geometry;
   LosClassifier c;  // overlapping classes: P(LoS) varies smoothly between them
   const std::string model = two_class_model(0.01, "locus_spyloc_verdict_model.yaml", c);
   // A decay between the classes that the model calls NLoS, but not beyond doubt (5-50 % LoS): what the
@@ -381,7 +381,6 @@ TEST(SpyLocPlugin, TheTrackCorrectsTheDecayVerdict) {
     p.set("los_model", model);
     p.set("speed_of_sound_mps", 343.0);
     p.set("nlos_excess_max_m", excess_max_m);
-    HostContext ctx{host.log, host.clock, fftw, host.link, "spyloc", "W", &g};
     loc->configure(p, ctx);
     Pub out;
     Counts n;
@@ -451,12 +450,8 @@ TEST(SpyLocClassifier, FuseLosWeighsTheInnovation) {
 // Dead reckoning in the plugin: three beacons heard for 8 s, then only one for 22 s while the walker
 // turns twice. The steps (in a frame rotated by an unknown 0.7 rad, strides 10 % long) carry the
 // track through the turns; the constant-velocity tracker (dead_reckoning: false, same events) cannot.
-TEST(SpyLocPlugin, DeadReckoningCarriesTheTrackOnOneBeacon) {
-  test::TestHost host;
-  FftwPlanner fftw({}, false);
-  const test::SpyLocBeacons beacons;
+TEST_F(SpyLocPlugin, DeadReckoningCarriesTheTrackOnOneBeacon) {
   const auto& b = beacons.anchors_m;
-  const DeviceGeometry& g = beacons.geometry;
   // The walk: 1.2 m/s east for 10 s, north for 10 s, west for 10 s; a step every 0.55 s.
   auto phi_at = [](double t) { return t < 10.0 ? 0.0 : t < 20.0 ? M_PI / 2 : M_PI; };
   auto pos_at = [](double t) {
@@ -469,7 +464,6 @@ TEST(SpyLocPlugin, DeadReckoningCarriesTheTrackOnOneBeacon) {
     Params p = Params::defaults(schema());
     p.set("speed_of_sound_mps", 343.0);
     p.set("dead_reckoning", dead_reckoning);
-    HostContext ctx{host.log, host.clock, fftw, host.link, "spyloc", "W", &g};
     loc->configure(p, ctx);
     Pub out;
     std::vector<double> late;
@@ -527,9 +521,7 @@ TEST(SpyLocPlugin, DeadReckoningCarriesTheTrackOnOneBeacon) {
   for (std::size_t i = published.size() - 10; i < published.size(); ++i) EXPECT_NEAR(published[i].stride_m, 0.66, 0.02) << i;
 }
 
-TEST(SpyLocPlugin, BadSetupsAreClearErrors) {
-  test::TestHost host;
-  FftwPlanner fftw({}, false);
+TEST_F(SpyLocPlugin, BadSetupsAreClearErrors) {
   auto configure = [&](const DeviceGeometry* g, const Params& p) {
     std::unique_ptr<Localizer> loc(descriptor()->create_localizer());
     HostContext ctx{host.log, host.clock, fftw, host.link, "spyloc", "W", g};
