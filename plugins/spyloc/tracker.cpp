@@ -64,14 +64,22 @@ bool range_update(Eigen::Vector4d& x, Eigen::Matrix4d& P, const Eigen::RowVector
   return true;
 }
 
-/// The slant range from (x, y) at height z to beacon b and its variance under P (either tracker).
-RangePrediction predicted_range(const Eigen::Vector4d& x, const Eigen::Matrix4d& P, const std::array<double, 3>& b,
-                                double z_m) {
+/// The slant range r from (x, y) at height z to beacon b and its row of the measurement Jacobian
+/// (either tracker: position in the first two states).
+Eigen::RowVector4d range_row(const Eigen::Vector4d& x, const std::array<double, 3>& b, double z_m, double& r) {
   const Eigen::Vector3d d(x(0) - b[0], x(1) - b[1], z_m - b[2]);
-  const double r = std::max(d.norm(), 1e-6);
+  r = std::max(d.norm(), 1e-6);
   Eigen::RowVector4d H = Eigen::RowVector4d::Zero();
   H(0) = d.x() / r;
   H(1) = d.y() / r;
+  return H;
+}
+
+/// The slant range to beacon b and its variance under P.
+RangePrediction predicted_range(const Eigen::Vector4d& x, const Eigen::Matrix4d& P, const std::array<double, 3>& b,
+                                double z_m) {
+  double r = 0.0;
+  const Eigen::RowVector4d H = range_row(x, b, z_m, r);
   return {r, std::max(0.0, (H * P * H.transpose())(0, 0))};
 }
 
@@ -86,11 +94,8 @@ RangePrediction PdrTracker::predict_range(const std::array<double, 3>& b, double
 }
 
 bool Tracker::update_range(const std::array<double, 3>& b, double z_m, double range_m, double std_m, double& nis) {
-  const Eigen::Vector3d d(x_(0) - b[0], x_(1) - b[1], z_m - b[2]);
-  const double r = std::max(d.norm(), 1e-6);
-  Eigen::RowVector4d H = Eigen::RowVector4d::Zero();
-  H(0) = d.x() / r;
-  H(1) = d.y() / r;
+  double r = 0.0;
+  const Eigen::RowVector4d H = range_row(x_, b, z_m, r);
   double S = 0.0;
   return range_update(x_, P_, H, range_m - r, std_m, cfg_.gate_sigma, cfg_.gate_long_sigma, cfg_.huber_sigma, nis, S);
 }
@@ -166,11 +171,8 @@ void PdrTracker::step(const std::array<double, 2>& d_m) {
 }
 
 bool PdrTracker::update_range(const std::array<double, 3>& b, double z_m, double range_m, double std_m, double& nis) {
-  const Eigen::Vector3d d(x_(0) - b[0], x_(1) - b[1], z_m - b[2]);
-  const double r = std::max(d.norm(), 1e-6);
-  Eigen::RowVector4d H = Eigen::RowVector4d::Zero();
-  H(0) = d.x() / r;
-  H(1) = d.y() / r;
+  double r = 0.0;
+  const Eigen::RowVector4d H = range_row(x_, b, z_m, r);
   const bool ok = range_update(x_, P_, H, range_m - r, std_m, cfg_.gate_sigma, cfg_.gate_long_sigma, cfg_.huber_sigma, nis, last_S_);
   if (ok) x_(3) = std::clamp(x_(3), 0.5, 2.0);
   return ok;

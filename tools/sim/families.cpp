@@ -45,6 +45,15 @@ scene::ClockTruth draw_clock(const DifficultyProfile& p, Rng& rng) {
   return c;
 }
 
+void set_burst_kind(NoiseModel& nm, const std::string& kind, double min_s, double max_s) {
+  if (kind == "white") return;
+  nm.burst_kind = kind == "babble" ? NoiseModel::BurstKind::Babble
+                  : kind == "music" ? NoiseModel::BurstKind::Music
+                                    : NoiseModel::BurstKind::Mixed;
+  nm.burst_min_s = min_s;
+  nm.burst_max_s = max_s;
+}
+
 void apply_profile(const DifficultyProfile& p, AcousticModel& a) {
   a.noise.snr_db = p.snr_db;
   a.noise.pink_fraction = p.pink_fraction;

@@ -70,13 +70,7 @@ Simulation make_amil(const FamilyOptions& opts) {
   sim.acoustics.room->diffuse_tail = tail;  // reverberation beyond the image sources
   NoiseModel& nm = sim.acoustics.noise;
   nm.self_noise_snr_db = easy ? 60.0 : hard ? 40.0 : 50.0;
-  if (bursts != "white") {
-    nm.burst_kind = bursts == "babble" ? NoiseModel::BurstKind::Babble
-                    : bursts == "music" ? NoiseModel::BurstKind::Music
-                                        : NoiseModel::BurstKind::Mixed;
-    nm.burst_min_s = 0.3;
-    nm.burst_max_s = 1.5;
-  }
+  set_burst_kind(nm, bursts, 0.3, 1.5);
 
   const Eigen::Vector3d origin(1.5, 0.25, kTableHeight_m);  // the player's start, on the table
   Rng layout = Rng::derive(opts.seed, "amil/layout");

@@ -64,14 +64,7 @@ Simulation make_spyloc(const FamilyOptions& opts) {
   // Interferers (the foreign spyloc-104: babble and music, 1.5-3 s, ~4 a minute, up to 20 kHz):
   // `bursts` babble / music / mixed instead of the profile's white bursts.
   if (bursts_per_minute >= 0.0) sim.acoustics.noise.bursts_per_minute = bursts_per_minute;
-  if (bursts != "white") {
-    NoiseModel& nm = sim.acoustics.noise;
-    nm.burst_kind = bursts == "babble" ? NoiseModel::BurstKind::Babble
-                    : bursts == "music" ? NoiseModel::BurstKind::Music
-                                        : NoiseModel::BurstKind::Mixed;
-    nm.burst_min_s = 0.3;
-    nm.burst_max_s = 3.0;
-  }
+  set_burst_kind(sim.acoustics.noise, bursts, 0.3, 3.0);
   sim.radio_latency_s = 50e-6;  // receive latency unknown to the receiver (tens of µs)
   sim.radio_jitter_s = sync_jitter_s;
   sim.radio_loss_probability = sync_loss;

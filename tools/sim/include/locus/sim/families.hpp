@@ -92,5 +92,8 @@ const Family* find_family(std::string_view name);
 scene::ClockTruth draw_clock(const DifficultyProfile& p, Rng& rng);
 /// Applies a profile's acoustic knobs (noise, room reflection/order if a room is set) to `a`.
 void apply_profile(const DifficultyProfile& p, AcousticModel& a);
+/// Noise bursts of kind `kind` (white | babble | music | mixed: babble or music each burst), lasting
+/// min_s..max_s; white leaves the model's bursts as they are (the difficulty's white noise).
+void set_burst_kind(NoiseModel& nm, const std::string& kind, double min_s, double max_s);
 
 }  // namespace locus::sim
