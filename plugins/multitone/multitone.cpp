@@ -51,7 +51,8 @@ constexpr std::size_t kMaxBodyHops = 64;  // body hops kept for the identity's m
 struct Pending {
   std::uint64_t open_frame = 0;   // hop end when the beep opened
   std::uint64_t ready_frame = 0;  // frame after which all the audio it needs is in the ring
-  std::array<double, 16> level{};  // mean tone-bank power over the body, per tone
+  std::array<double, 16> level{};  // median tone-bank power over the body, per tone
+  std::array<double, 16> head{};   // ... over its first half (a burst may cover the rest of the beep)
   std::array<double, 16> floor{};  // floors when it opened
 };
 
@@ -72,6 +73,10 @@ struct Channel {
   std::uint64_t last_open = 0;
   bool opened_once = false;
   bool last_body_short = false;  // the last body was active for less than half a beep: a blip, not a beep
+  bool body_pattern = false;      // a candidate's tone pattern showed in the body's first hops
+  bool last_pattern = false;      // ... in the last body opened
+  std::vector<std::uint32_t> pat_high_run;   // per candidate: hops in a row its contrast is over pattern_db
+  std::vector<std::uint32_t> pat_since_low;  // per candidate: hops since its contrast was under pattern_low_db
   std::array<Pending, kMaxPending> pending{};
   std::size_t pend_head = 0, pend_n = 0;
   std::uint64_t start_frame = 0;  // first valid frame since restart
@@ -164,8 +169,13 @@ class MultitoneDetector final : public Detector {
     hold_hops_ = static_cast<std::uint64_t>(std::ceil(params.get_float("hold_s") * fs_ / static_cast<double>(hop_)));
     max_active_hops_ = static_cast<std::uint64_t>(std::ceil(params.get_float("max_active_s") * fs_ / static_cast<double>(hop_)));
     rise_ = std::pow(10.0, params.get_float("rise_db") / 10.0);
+    pat_db_ = params.get_float("pattern_db");
+    pat_low_db_ = params.get_float("pattern_low_db");
+    if (!(pat_low_db_ < pat_db_))
+      throw std::runtime_error("multitone: pattern_low_db must be below pattern_db");
     rel_ = std::pow(10.0, -params.get_float("relative_db") / 10.0);
     onset_thr_ = std::pow(10.0, params.get_float("onset_threshold_db") / 10.0);
+    weak_onset_thr_ = std::min(onset_thr_, std::pow(10.0, params.get_float("weak_onset_threshold_db") / 10.0));
     fit_len_ = static_cast<std::size_t>(std::llround(params.get_float("fit_window_s") * fs_));
     paths_opt_ = dsp::OnsetPathsFit::Options{};
     paths_opt_.oversample = kOs;
@@ -239,7 +249,10 @@ class MultitoneDetector final : public Detector {
       ch.raw.assign(ring_size_, 0.0f);
       ch.floor.assign(tones_.size(), 0.0);
       ch.body.assign(kMaxBodyHops * tones_.size(), 0.0);
+      ch.pat_high_run.assign(candidates_.size(), 0);
+      ch.pat_since_low.assign(candidates_.size(), 1u << 30);
     }
+    lvl_db_.assign(tones_.size(), 0.0);
     frame_buf_.assign(frame_, 0.0f);
     pow_.assign(tones_.size(), 0.0);
     seg_.assign(nfft_, 0.0f);
@@ -308,6 +321,10 @@ class MultitoneDetector final : public Detector {
     }
     if (dropped_ > 0 && log_) log_->warn("multitone: " + std::to_string(dropped_) + " events dropped (event queue full)");
     if (overflow_ > 0 && log_) log_->warn("multitone: " + std::to_string(overflow_) + " beeps dropped (more than 8 awaiting analysis)");
+    if (log_)
+      log_->info("multitone: " + std::to_string(rejected_) + " bodies rejected (no identity or leading edge), " +
+                 std::to_string(split_) + " interferer bodies yielded to a beep's tone pattern, " + std::to_string(weak_edges_) +
+                 " leading edges at weak_onset_threshold_db");
   }
 
  private:
@@ -323,6 +340,10 @@ class MultitoneDetector final : public Detector {
     ch.pend_n = 0;
     ch.pend_head = 0;
     ch.opened_once = false;
+    ch.body_pattern = false;
+    ch.last_pattern = false;
+    std::fill(ch.pat_high_run.begin(), ch.pat_high_run.end(), 0u);
+    std::fill(ch.pat_since_low.begin(), ch.pat_since_low.end(), 1u << 30);
     ch.start_frame = frame;
     ch.end_frame = frame;
     ch.started = true;
@@ -338,15 +359,22 @@ class MultitoneDetector final : public Detector {
     ++ch.pend_n;
     p.open_frame = ch.open_frame;
     p.ready_frame = ch.open_frame + after_;
+    const std::size_t n = std::min<std::size_t>(static_cast<std::size_t>(std::max(ch.body_hops, 1)), kMaxBodyHops);
+    const std::size_t nh = std::max<std::size_t>(std::min<std::size_t>(n, 3), n / 2);
     for (std::size_t k = 0; k < tones_.size(); ++k) {
       // Median over the body hops: the frames on the beep's edges (fade splatter into neighbouring
       // tones) and a burst of noise do not move it.
-      const std::size_t n = std::min<std::size_t>(static_cast<std::size_t>(std::max(ch.body_hops, 1)), kMaxBodyHops);
-      for (std::size_t h = 0; h < n; ++h) med_[h] = ch.body[h * tones_.size() + k];
-      std::nth_element(med_.begin(), med_.begin() + static_cast<std::ptrdiff_t>(n / 2), med_.begin() + static_cast<std::ptrdiff_t>(n));
-      p.level[k] = med_[n / 2];
+      p.level[k] = body_median(ch, k, n);
+      p.head[k] = body_median(ch, k, nh);
       p.floor[k] = ch.floor[k];
     }
+  }
+
+  // [RT] Median of tone k's power over the first n body hops.
+  double body_median(const Channel& ch, std::size_t k, std::size_t n) noexcept {
+    for (std::size_t h = 0; h < n; ++h) med_[h] = ch.body[h * tones_.size() + k];
+    std::nth_element(med_.begin(), med_.begin() + static_cast<std::ptrdiff_t>(n / 2), med_.begin() + static_cast<std::ptrdiff_t>(n));
+    return med_[n / 2];
   }
 
   // [RT] One tone-bank hop: floors, opening and closing of beeps, analysis of the ready ones.
@@ -374,7 +402,16 @@ class MultitoneDetector final : public Detector {
     const bool rising = active && sum > rise_ * ch.sum_hist[2] && ch.sum_hist[2] > 0.0;
     for (std::size_t i = ch.sum_hist.size() - 1; i > 0; --i) ch.sum_hist[i] = ch.sum_hist[i - 1];
     ch.sum_hist[0] = sum;
-    if (ch.in_body) {
+    bool pattern_now = false;
+    const bool pattern_edge = warm && candidate_pattern(ch, pattern_now);
+    if (ch.in_body && ch.body_hops < 4 && pattern_now) ch.body_pattern = true;
+    if (ch.in_body && pattern_edge && active && !ch.body_pattern) {
+      // A candidate's tone pattern starts inside a body that showed none at its start: an
+      // interferer's burst keeps the tone set active, so that body opened on the burst. It is dropped
+      // and the beep gets its own body from here (its identity and search range on the beep).
+      ++split_;
+      open_body(ch, pattern_now);
+    } else if (ch.in_body) {
       if (static_cast<std::size_t>(ch.body_hops) < kMaxBodyHops)
         std::copy(pow_.begin(), pow_.end(), ch.body.begin() + static_cast<std::ptrdiff_t>(ch.body_hops * tones_.size()));
       ++ch.body_hops;
@@ -384,46 +421,96 @@ class MultitoneDetector final : public Detector {
             ch.quiet_hops >= 2 && 2 * static_cast<std::size_t>(ch.body_hops - ch.quiet_hops) * hop_ < len_;  // active hops
         close_body(ch);
       }
-    } else if (active && (!ch.was_active || rising) &&
-               (!ch.opened_once || ch.end_frame - ch.last_open > len_ + frame_ || (ch.last_body_short && rising))) {
+    } else if (active && (((!ch.was_active || rising) &&
+                           (!ch.opened_once || ch.end_frame - ch.last_open > len_ + frame_ || (ch.last_body_short && rising))) ||
+                          (pattern_edge && !ch.last_pattern))) {
       // A new beep opens a beep's length after the last one opened (its own tail and echoes must not
       // open another), or sooner on a clear rise when the last body was a blip, active for less than
       // half a beep (an interferer's burst just before a beep: spyloc-104's beeps 101 and 102, 33 dB
-      // over the floor, were lost behind babble blips 2000 samples earlier).
-      ch.in_body = true;
-      ch.opened_once = true;
-      ch.open_frame = ch.end_frame;
-      ch.last_open = ch.end_frame;
-      ch.quiet_hops = 0;
-      ch.body_hops = 1;
-      std::copy(pow_.begin(), pow_.end(), ch.body.begin());
+      // over the floor, were lost behind babble blips 2000 samples earlier), or when a candidate's
+      // tone pattern starts and the last body showed none (a beep inside an interferer's burst).
+      open_body(ch, pattern_now);
     }
     ch.was_active = active;
     ch.hops_since_active = active ? 0 : ch.hops_since_active + 1;
     ch.active_run = active ? ch.active_run + 1 : 0;
     // Floors: only well away from any activity (beeps and their tails), or slowly inside a long one.
-    const bool learn = !ch.in_body && (!warm || ch.hops_since_active > hold_hops_ || ch.active_run > max_active_hops_);
+    // Inside a long activity (an interferer's burst: bodies open on it back to back) they learn in
+    // bodies too, each hop's power clipped at 6 dB over the floor, so that a beep inside the burst
+    // moves them by less than a dB while the burst's level is followed within about a second.
+    const bool long_activity = warm && ch.active_run > max_active_hops_;
+    const bool learn = (!ch.in_body && (!warm || ch.hops_since_active > hold_hops_)) || long_activity;
     if (learn) {
       for (std::size_t k = 0; k < tones_.size(); ++k) {
         const double b = std::max(beta_, 1.0 / static_cast<double>(ch.floor_n + 1));
-        ch.floor[k] += b * (pow_[k] - ch.floor[k]);
+        const double v = long_activity ? std::min(pow_[k], 4.0 * ch.floor[k]) : pow_[k];
+        ch.floor[k] += b * (v - ch.floor[k]);
       }
       ++ch.floor_n;
     }
   }
 
+  // [RT] Opens a body at this hop (the previous one, if any, is dropped unanalysed).
+  void open_body(Channel& ch, bool pattern_now) noexcept {
+    ch.in_body = true;
+    ch.opened_once = true;
+    ch.open_frame = ch.end_frame;
+    ch.last_open = ch.end_frame;
+    ch.quiet_hops = 0;
+    ch.body_hops = 1;
+    ch.body_pattern = pattern_now;
+    ch.last_pattern = pattern_now;
+    std::copy(pow_.begin(), pow_.end(), ch.body.begin());
+  }
+
+  // [RT] Per candidate identity, the contrast of its tones over the others (mean levels over the
+  // floors, dB): a broadband interferer raises every tone alike, a beep only its own. Sets
+  // `pattern_now` when some candidate's contrast is over pattern_db for two hops in a row (one such
+  // hop happens by chance under a burst); returns true on a pattern's
+  // start: a candidate over pattern_db for a second hop in a row, under pattern_low_db within the
+  // three hops before that run began.
+  bool candidate_pattern(Channel& ch, bool& pattern_now) noexcept {
+    if (candidates_.empty()) return false;
+    for (std::size_t k = 0; k < tones_.size(); ++k)
+      lvl_db_[k] = 10.0 * std::log10(std::max(pow_[k], 1e-30) / std::max(ch.floor[k], 1e-30));
+    bool edge = false;
+    for (std::size_t j = 0; j < candidates_.size(); ++j) {
+      const std::uint32_t m = candidates_[j];
+      double in = 0.0, out = 0.0;
+      int n_in = 0, n_out = 0;
+      for (std::size_t k = 0; k < tones_.size(); ++k) {
+        if ((m >> k) & 1u) {
+          in += lvl_db_[k];
+          ++n_in;
+        } else {
+          out += lvl_db_[k];
+          ++n_out;
+        }
+      }
+      const double contrast = in / std::max(n_in, 1) - (n_out > 0 ? out / n_out : 0.0);
+      std::uint32_t& run = ch.pat_high_run[j];
+      std::uint32_t& since_low = ch.pat_since_low[j];
+      since_low = contrast < pat_low_db_ ? 0 : std::min<std::uint32_t>(since_low + 1, 1u << 30);
+      run = contrast > pat_db_ ? run + 1 : 0;
+      pattern_now = pattern_now || run >= 2;
+      edge = edge || (run == 2 && since_low <= 5);
+    }
+    return edge;
+  }
+
   // [RT] Identity of a beep from its per-tone body levels; 0 = not a beep of the set.
-  std::uint32_t identity(const Pending& p, double& snr_db, double& conf) noexcept {
+  std::uint32_t identity(const Pending& p, const std::array<double, 16>& level, double& snr_db, double& conf) noexcept {
     double lmax = 0.0, pmax = 0.0;
     std::array<double, 16> l{};
+    background_db_ = 0.0;
     for (std::size_t k = 0; k < tones_.size(); ++k) {
-      l[k] = 10.0 * std::log10(std::max(p.level[k], 1e-30) / std::max(p.floor[k], 1e-30));
+      l[k] = 10.0 * std::log10(std::max(level[k], 1e-30) / std::max(p.floor[k], 1e-30));
       lmax = std::max(lmax, l[k]);
-      pmax = std::max(pmax, p.level[k]);
+      pmax = std::max(pmax, level[k]);
     }
     std::uint32_t mask = 0;
     for (std::size_t k = 0; k < tones_.size(); ++k)
-      if (l[k] > id_db_ && p.level[k] > rel_ * pmax) mask |= 1u << k;
+      if (l[k] > id_db_ && level[k] > rel_ * pmax) mask |= 1u << k;
     if (mask == 0) return 0;
     conf = 1.0;
     if (!candidates_.empty()) {
@@ -440,9 +527,26 @@ class MultitoneDetector final : public Detector {
           second = sc;
         }
       }
-      // The candidate must explain the strong tones: every tone within 10 dB of the strongest is in it.
+      // The candidate must explain the strong tones: every tone within 10 dB of the strongest is in
+      // it, unless that tone is no more than 6 dB over the median of the tones outside it (an
+      // interferer's burst raises every tone alike; another beacon's tone stands out of them).
+      std::size_t n_out = 0;
       for (std::size_t k = 0; k < tones_.size(); ++k)
-        if (l[k] > lmax - 10.0 && l[k] > id_db_ && !((arg >> k) & 1u)) return 0;
+        if (!((arg >> k) & 1u)) out_db_[n_out++] = l[k];
+      double background = 0.0;
+      if (n_out > 0) {
+        std::nth_element(out_db_.begin(), out_db_.begin() + static_cast<std::ptrdiff_t>(n_out / 2), out_db_.begin() + static_cast<std::ptrdiff_t>(n_out));
+        background = std::max(0.0, out_db_[n_out / 2]);
+      }
+      background_db_ = background;
+      for (std::size_t k = 0; k < tones_.size(); ++k)
+        if (l[k] > lmax - 10.0 && l[k] > id_db_ && l[k] > background + 6.0 && !((arg >> k) & 1u)) return 0;
+      // ... and its own tones stand out of that background (median 6 dB over it: not the burst alone).
+      std::size_t n_in = 0;
+      for (std::size_t k = 0; k < tones_.size(); ++k)
+        if ((arg >> k) & 1u) out_db_[n_in++] = l[k];
+      std::nth_element(out_db_.begin(), out_db_.begin() + static_cast<std::ptrdiff_t>(n_in / 2), out_db_.begin() + static_cast<std::ptrdiff_t>(n_in));
+      if (n_in == 0 || !(out_db_[n_in / 2] > background + 6.0)) return 0;
       mask = arg;
       conf = candidates_.size() > 1 ? std::clamp((best - second) / std::max(lmax, 1e-9), 0.0, 1.0) : 1.0;
     }
@@ -530,7 +634,9 @@ class MultitoneDetector final : public Detector {
   void finalize(std::uint32_t c, const Pending& p, EventSink& out) noexcept {
     Channel& ch = chans_[c];
     double snr_db = 0.0, conf = 0.0;
-    const std::uint32_t mask = identity(p, snr_db, conf);
+    std::uint32_t mask = identity(p, p.level, snr_db, conf);
+    // An interferer's burst that starts during the beep covers the rest of its body: its first half.
+    if (mask == 0 && !candidates_.empty()) mask = identity(p, p.head, snr_db, conf);
     if (mask == 0) {
       ++rejected_;
       return;
@@ -566,14 +672,23 @@ class MultitoneDetector final : public Detector {
     // interferer's blip in the search window) is not a beep's start.
     std::size_t edge = lags;
     const std::size_t sustain = 3 * onset_len_;
-    for (std::size_t l = noise_len_; l < lags; ++l) {
-      if (!(stat_[l] > onset_thr_ * noise)) continue;
-      const std::size_t end = std::min(lags, l + sustain);
-      std::size_t on = 0;
-      for (std::size_t q = l; q < end; ++q) on += stat_[q] > 0.25 * onset_thr_ * noise;
-      if (end - l < sustain || 2 * on >= end - l) {
-        edge = l;
-        break;
+    // With candidates the identity already says a beep is there; under an interferer's burst (the
+    // tones outside the identity over identity_db; the noise reference is the burst) its onset may
+    // not clear onset_threshold_db: a second pass at weak_onset_threshold_db, the same sustain rule.
+    // (Not in a beep's own tail, where the tones outside it are quiet.)
+    const int passes_edge = !candidates_.empty() && background_db_ > 3.0 ? 2 : 1;
+    for (int pe = 0; pe < passes_edge && edge == lags; ++pe) {
+      const double thr = (pe == 0 ? onset_thr_ : weak_onset_thr_) * noise;
+      for (std::size_t l = noise_len_; l < lags; ++l) {
+        if (!(stat_[l] > thr)) continue;
+        const std::size_t end = std::min(lags, l + sustain);
+        std::size_t on = 0;
+        for (std::size_t q = l; q < end; ++q) on += stat_[q] > 0.25 * thr;
+        if (end - l < sustain || 2 * on >= end - l) {
+          edge = l;
+          weak_edges_ += pe;
+          break;
+        }
       }
     }
     if (edge == lags) {
@@ -746,6 +861,10 @@ class MultitoneDetector final : public Detector {
   std::size_t onset_len_ = 176, fit_len_ = 176, pre_ = 60, noise_len_ = 882, fine_n_ = 0, before_ = 0, after_ = 0;
   std::int64_t search_ = 0;
   double thr_ = 10.0, thr_db_ = 10.0, id_db_ = 6.0, beta_ = 0.01, rise_ = 4.0, rel_ = 0.003, onset_thr_ = 30.0;
+  double pat_db_ = 12.0, pat_low_db_ = 4.0, weak_onset_thr_ = 8.0;
+  std::uint64_t weak_edges_ = 0;
+  double background_db_ = 0.0;  // the last identity's background: median level of the tones outside it, dB
+  std::vector<double> lvl_db_;  // per tone: power over floor this hop, dB
   int min_tones_ = 1;
   bool coherent_ = false;
   std::uint64_t warmup_hops_ = 1, hold_hops_ = 1, max_active_hops_ = 1;
@@ -765,12 +884,13 @@ class MultitoneDetector final : public Detector {
   std::size_t settle_ = 441;
   double tone_energy_ = 1.0;
   double sum_thr_ = 1e300;
-  std::uint64_t rejected_ = 0, overflow_ = 0;
+  std::uint64_t rejected_ = 0, overflow_ = 0, split_ = 0;
   std::size_t ring_size_ = 0, ring_mask_ = 0;
   std::vector<Channel> chans_;
   std::vector<float> frame_buf_, seg_, re_, im_;
   std::vector<double> pow_, env_, stat_, sorted_;
   std::array<double, kMaxBodyHops> med_{};
+  std::array<double, 16> out_db_{};
   std::vector<cf> spec_y_, spec_w_;
   std::uint64_t expected_ = 0;
   bool have_expected_ = false;
@@ -804,9 +924,17 @@ const ParamSchema& schema() {
       float_param("hold_s", 0.15, 0.0, 10.0, "s", "Floors learn only this long after the last tone activity (beep tails)."),
       float_param("max_active_s", 0.6, 0.05, 60.0, "s", "Activity longer than this is not a beep: floors learn through it."),
       float_param("rise_db", 6.0, 1.0, 40.0, "dB", "Rise of the summed tone power within 3 hops that opens a beep on a tail."),
+      float_param("pattern_db", 12.0, 3.0, 60.0, "dB",
+                  "With candidate identities: a candidate's tones over the other tones by this (mean levels over the floors) "
+                  "for two hops marks a beep's start inside an interferer's burst, which keeps the tone set active."),
+      float_param("pattern_low_db", 4.0, 0.0, 40.0, "dB",
+                  "... after its contrast was under this within the three hops before (the pattern's start, not its tail)."),
       float_param("identity_db", 6.0, 1.0, 80.0, "dB", "A tone is in the identity when its mean power over the beep body exceeds its floor by this."),
       float_param("relative_db", 25.0, 3.0, 80.0, "dB", "A tone is on only within this of the strongest tone (Doppler leakage, fading)."),
       float_param("onset_threshold_db", 15.0, 3.0, 60.0, "dB", "Leading edge: onset statistic over its noise level."),
+      float_param("weak_onset_threshold_db", 9.0, 3.0, 60.0, "dB",
+                  "With candidate identities, a beep whose identity holds but whose onset does not clear onset_threshold_db "
+                  "(an interferer's burst as the noise reference) is searched again at this."),
       enum_param("fit_phase", "free", {"free", "known"},
                  "Onset fit: `free` = complex amplitude (any phase shift of the path), `known` = the format's sine phases (carrier-resolved; a path's phase shift biases it)."),
       float_param("fit_window_s", 0.003, 0.0005, 0.05, "s", "Onset fit window after the first path."),

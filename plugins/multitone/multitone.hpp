@@ -21,19 +21,31 @@
 //      (an interferer's burst just before a beep). A beep's body closes after two quiet hops or
 //      duration_s + frame_s; closed beeps queue (up to 8) for analysis, so a new beep opens however
 //      close the previous one;
+//   2b. interferers (with candidate identities): a babble or music burst raises every tone alike and
+//      keeps the set active for seconds, so bodies open on the burst back to back. Per hop and
+//      candidate, the contrast of its tones over the others (mean dB over the floors) marks a beep's
+//      start: over pattern_db for two hops after being under pattern_low_db. A body that showed no
+//      candidate's pattern in its first hops yields to such a start (it is dropped, the beep gets its
+//      own body), and a body may open on one within a beep's length after such a body. Inside a
+//      long activity the floors learn in bodies too, each hop clipped at 6 dB over the floor;
 //   3. identity: per tone, the median tone-bank power over the body frames; tone k is on when it
 //      exceeds its floor by identity_db (a mean over many frames, so lower than threshold_db) and
 //      lies within relative_db of the strongest tone. With
 //      `identities` (or from_scene: the scene's multitone emitters) the identity is the candidate
 //      that best explains the levels: score = Σ_k ±(L_k − L_max/2) (+ for tones in the candidate),
-//      L_k in dB over the floor; a measured mask that no candidate explains is rejected;
+//      L_k in dB over the floor; a measured mask that no candidate explains is rejected: every tone
+//      within 10 dB of the strongest must be in the candidate unless it is within 6 dB of the median
+//      of the tones outside it (the background: a burst), and the candidate's own tones must stand
+//      6 dB over that background. When the body fails, its first half is tried (a burst that
+//      starts during the beep covers the rest);
 //   4. first path: onset statistic c(τ) = |<y, o(·−τ)>|² with o the identity's first 1/Δf seconds
 //      (Δf the tone spacing: one period of the tone grid, cos and sin parts), by FFT over the search
 //      range; its noise level from the 20 ms before the search range; the earliest lag where c
 //      exceeds onset_threshold_db above that noise, and stays within 6 dB of it over at least half
 //      of the next 3 onset lengths (a blip in the search window is not a beep's start), marks the
 //      leading edge (so a weak diffracted first path, 20-30 dB under later echoes, is still found
-//      when it clears the noise). Then a
+//      when it clears the noise). When that finds nothing under a burst (the identity's background
+//      over 3 dB: the noise reference is the burst), a second pass at weak_onset_threshold_db. Then a
 //      least-squares fit of the beep's onset a·s(t−τ) (complex amplitude: cos and sin templates,
 //      template zero before τ) over a window fixed for all candidates τ of a pass, ending
 //      fit_window_s after the current estimate: maximise the projected (explained) energy over τ on a
