@@ -73,6 +73,33 @@ else
   echo "[seed 103] OK: $(grep -E 'PASS' "$tmp/s103.eval.txt" | tr -s ' ' | tr '\n' ' ')"
 fi
 
+# Interferers (docs/spyloc.md "Beeps inside an interferer's burst"): babble and music bursts, 6 per
+# minute, ~10 dB louder near the tones than spyloc-104's. Regression bars: LoS found >= 96 % (measured
+# 97.3 % and 98.3 % on seeds 101 and 105; 94.5 / 92.3 % before the burst handling of 2026-11-29; the
+# issue's 98 % is not met with interferers, 96.9 % pooled over 101-120), p90 <= 0.8 m.
+for seed in 101 105; do
+  sc="$tmp/i$seed"
+  timeout 120 "$locus" simulate spyloc "$sc" --seed "$seed" -q -o bursts=mixed -o bursts_per_minute=6
+  status=0
+  timeout 120 "$locus" replay "$sc" --config "$src/config/spyloc.yaml" --speed max \
+    --events estimate,audio_detection,decay_features -o "$sc.jsonl" 2>"$sc.log" &&
+    timeout 60 "$locus" eval "$sc" "$sc.jsonl" --metric spyloc --min-located-fraction 1.0 --max-p90-error-m 0.8 \
+      >"$sc.eval.txt" 2>&1 || status=$?
+  if [ "$status" -ne 0 ]; then
+    echo "[interferers, seed $seed] p90 bar missed (exit $status):"; cat "$sc.log" "$sc.eval.txt" 2>/dev/null; fail=1
+  elif [ -n "$py" ]; then
+    status=0
+    "$py" "$src/tools/scripts/check_spyloc_arrivals.py" "$sc" "$sc.jsonl" --min-los-found 0.96 >"$sc.det.txt" 2>&1 || status=$?
+    if [ "$status" -ne 0 ]; then
+      echo "[interferers, seed $seed] detection bar missed:"; cat "$sc.det.txt"; fail=1
+    else
+      echo "[interferers, seed $seed] OK: $(grep -E '  los' "$sc.det.txt" | tr -s ' ')"
+    fi
+  else
+    echo "[interferers, seed $seed] localization OK; detection not scored: python3 with numpy and yaml not found"
+  fi
+done
+
 # LoS/NLoS classifier: trained as the shipped model is (docs/spyloc.md), tested on the two seeds above.
 for seed in 3 4 5 6; do timeout 120 "$locus" simulate spyloc "$tmp/t$seed" --seed "$seed" -q; done
 status=0
