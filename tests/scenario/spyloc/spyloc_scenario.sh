@@ -26,6 +26,18 @@ for cand in /usr/bin/python3 python3; do
   if command -v "$cand" >/dev/null && "$cand" -c 'import numpy, yaml' 2>/dev/null; then py="$cand"; break; fi
 done
 
+score_detection() {  # label scene bars...: the detection bars, by check_spyloc_arrivals.py
+  local label="$1" sc="$2" status=0
+  shift 2
+  if [ -z "$py" ]; then echo "$label detection not scored: python3 with numpy and yaml not found"; return; fi
+  "$py" "$src/tools/scripts/check_spyloc_arrivals.py" "$sc" "$sc.jsonl" "$@" >"$sc.det.txt" 2>&1 || status=$?
+  if [ "$status" -ne 0 ]; then
+    echo "$label detection bar missed:"; cat "$sc.det.txt"; fail=1
+  else
+    echo "$label detection OK: $(grep -E '  (los|verdicts)' "$sc.det.txt" | tr -s ' ')"
+  fi
+}
+
 run_case() {  # seed
   local seed="$1" sc="$tmp/s$1"
   timeout 120 "$locus" simulate spyloc "$sc" --seed "$seed" -q
@@ -41,18 +53,7 @@ run_case() {  # seed
   else
     echo "[seed $seed] localization OK: $(grep -E 'PASS' "$sc.eval.txt" | tr -s ' ' | tr '\n' ' ')"
   fi
-  if [ -n "$py" ]; then
-    status=0
-    "$py" "$src/tools/scripts/check_spyloc_arrivals.py" "$sc" "$sc.jsonl" --min-los-found 0.98 --min-los-within1 0.6 --min-verdicts 0.95 \
-      >"$sc.det.txt" 2>&1 || status=$?
-    if [ "$status" -ne 0 ]; then
-      echo "[seed $seed] detection bar missed:"; cat "$sc.det.txt"; fail=1
-    else
-      echo "[seed $seed] detection OK: $(grep -E '  (los|verdicts)' "$sc.det.txt" | tr -s ' ')"
-    fi
-  else
-    echo "[seed $seed] detection not scored: python3 with numpy and yaml not found"
-  fi
+  score_detection "[seed $seed]" "$sc" --min-los-found 0.98 --min-los-within1 0.6 --min-verdicts 0.95
 }
 
 run_case 101
@@ -87,16 +88,8 @@ for seed in 101 105; do
       >"$sc.eval.txt" 2>&1 || status=$?
   if [ "$status" -ne 0 ]; then
     echo "[interferers, seed $seed] p90 bar missed (exit $status):"; cat "$sc.log" "$sc.eval.txt" 2>/dev/null; fail=1
-  elif [ -n "$py" ]; then
-    status=0
-    "$py" "$src/tools/scripts/check_spyloc_arrivals.py" "$sc" "$sc.jsonl" --min-los-found 0.96 >"$sc.det.txt" 2>&1 || status=$?
-    if [ "$status" -ne 0 ]; then
-      echo "[interferers, seed $seed] detection bar missed:"; cat "$sc.det.txt"; fail=1
-    else
-      echo "[interferers, seed $seed] OK: $(grep -E '  los' "$sc.det.txt" | tr -s ' ')"
-    fi
   else
-    echo "[interferers, seed $seed] localization OK; detection not scored: python3 with numpy and yaml not found"
+    score_detection "[interferers, seed $seed]" "$sc" --min-los-found 0.96
   fi
 done
 
