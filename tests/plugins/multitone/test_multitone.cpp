@@ -79,6 +79,14 @@ Out run(Detector& d, const std::vector<float>& x) {
   return o;
 }
 
+// Three beacons' identities (a SpyLoc scene's candidates) and the default parameters with them.
+constexpr std::uint32_t kThreeIds[3] = {0b1100010001u, 0b1111010010u, 0b1010111100u};
+Params with_three_identities() {
+  Params p = Params::defaults(plugins::multitone::schema());
+  p.set("identities", std::vector<double>{double(kThreeIds[0]), double(kThreeIds[1]), double(kThreeIds[2])});
+  return p;
+}
+
 // Per true beep, the smallest |error| (samples) of a detection with its identity; 1e9 when none.
 std::vector<double> best_errors(const Out& o, const std::vector<double>& truth, const std::vector<std::uint32_t>& masks) {
   std::vector<double> err(truth.size(), 1e9);
@@ -253,9 +261,8 @@ TEST(Multitone, CloseSuccessiveBeepsAllFound) {
 // blip's, which lies in the search window (a first path needs the beep's energy after it).
 TEST(Multitone, BeepRightAfterANoiseBlipIsFound) {
   Fixture f;
-  Params p = Params::defaults(plugins::multitone::schema());
-  const std::uint32_t ids[3] = {0b1100010001u, 0b1111010010u, 0b1010111100u};
-  p.set("identities", std::vector<double>{double(ids[0]), double(ids[1]), double(ids[2])});
+  const std::uint32_t* ids = kThreeIds;
+  const Params p = with_three_identities();
   std::mt19937 rng(5);
   std::vector<float> x(static_cast<std::size_t>(4.0 * kFs), 0.0f);
   std::normal_distribution<float> blip(0.0f, 5e-4f), g(0.0f, 1e-4f);
@@ -297,9 +304,8 @@ TEST(Multitone, BeepRightAfterANoiseBlipIsFound) {
 // 13 / 12 / 12; now 16 / 16 / 16, within 2 samples 16 / 15 / 14).
 TEST(Multitone, BeepsInsideAnInterferersBurstAreFound) {
   Fixture f;
-  Params p = Params::defaults(plugins::multitone::schema());
-  const std::uint32_t ids[3] = {0b1100010001u, 0b1111010010u, 0b1010111100u};
-  p.set("identities", std::vector<double>{double(ids[0]), double(ids[1]), double(ids[2])});
+  const std::uint32_t* ids = kThreeIds;
+  const Params p = with_three_identities();
   std::mt19937 rng(11);
   std::vector<float> x(static_cast<std::size_t>(5.5 * kFs), 0.0f);
   std::normal_distribution<float> g(0.0f, 1.0f);
