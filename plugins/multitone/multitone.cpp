@@ -932,7 +932,7 @@ const ParamSchema& schema() {
       float_param("identity_db", 6.0, 1.0, 80.0, "dB", "A tone is in the identity when its mean power over the beep body exceeds its floor by this."),
       float_param("relative_db", 25.0, 3.0, 80.0, "dB", "A tone is on only within this of the strongest tone (Doppler leakage, fading)."),
       float_param("onset_threshold_db", 15.0, 3.0, 60.0, "dB", "Leading edge: onset statistic over its noise level."),
-      float_param("weak_onset_threshold_db", 9.0, 3.0, 60.0, "dB",
+      float_param("weak_onset_threshold_db", 7.0, 3.0, 60.0, "dB",
                   "With candidate identities, a beep whose identity holds but whose onset does not clear onset_threshold_db "
                   "(an interferer's burst as the noise reference) is searched again at this."),
       enum_param("fit_phase", "free", {"free", "known"},

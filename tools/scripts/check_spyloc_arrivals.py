@@ -28,6 +28,9 @@ Truth, per beep: the local sample index (fractional) of the first path at the de
     first path is the attenuated direct path, so first = LOS arrival there.
 Identity: a beacon's tones_hz -> bit k for tone 18000 + 250·k Hz (the detector's default tone set;
 --base-hz/--spacing-hz for another); a detection's `template` must equal that mask.
+Beeps the recording does not hold whole (their first path later than the device's audio length
+minus the beep's duration: emitted near the end, they arrive after it or are cut by it) are matched
+but not scored; their count is printed (`cut_by_end`).
 Matching: every audio_detection of the device is paired with the beep whose first arrival is nearest
 (within --window-s, default 30 ms); each beep keeps its nearest detection; others are `false`.
 Bars (exit status 4 when missed): --min-los-found (fraction of LOS beeps found with the right
@@ -134,6 +137,31 @@ def read_events(path, event_type, device=None):
     return out
 
 
+def wav_frames(path):
+    """Frames in a RIFF/WAVE file (PCM or float), from its `fmt ` block align and `data` size."""
+    with open(path, 'rb') as f:
+        head = f.read(12)
+        if head[:4] != b'RIFF' or head[8:12] != b'WAVE':
+            sys.exit(f'{path}: not a RIFF/WAVE file')
+        align = None
+        while True:
+            ch = f.read(8)
+            if len(ch) < 8:
+                sys.exit(f'{path}: no data chunk')
+            cid, size = ch[:4], int.from_bytes(ch[4:8], 'little')
+            if cid == b'fmt ':
+                fmt = f.read(size)
+                align = int.from_bytes(fmt[12:14], 'little')
+                if size % 2:
+                    f.read(1)
+            elif cid == b'data':
+                if not align:
+                    sys.exit(f'{path}: data before fmt')
+                return size // align
+            else:
+                f.seek(size + (size % 2), 1)
+
+
 def match_detections(beeps, dets, window):
     """Pairs each detection with the beep whose first arrival is nearest (within `window` samples);
     each beep keeps its nearest detection. Returns ({beep index: detection}, unpaired count)."""
@@ -190,6 +218,13 @@ def main():
     beeps = beeps_from_extra(a.scene)
     if beeps is None:
         beeps = beeps_from_geometry(a.scene, scene, device)
+    dev = next(d for d in scene['devices'] if d['id'] == device)
+    frames = wav_frames(os.path.join(a.scene, dev['audio']))
+    durations = {}
+    for e in (scene.get('emitters') or []) + (scene.get('devices') or []):
+        for s in e.get('emits') or []:
+            if s.get('type') == 'multitone':
+                durations[e['id']] = float(s.get('duration', 0.0))
     dets = read_events(a.detections, 'audio_detection', device)
     best, false = match_detections(beeps, dets, a.window_s * fs)
     rows = []
@@ -201,7 +236,10 @@ def main():
             r['identity_ok'] = int(d['template']) == masks.get(b['beacon'], -1)
             r['err'] = float(d['frame']) - b['first']
             r['err_first_table'] = float(d['frame']) - b['first_table']
+        r['cut'] = b['first'] + durations.get(b['beacon'], 0.0) * fs > frames
         rows.append(r)
+    cut = [r for r in rows if r['cut']]
+    rows = [r for r in rows if not r['cut']]
 
     # The localizer's LoS/NLoS verdict per ranged beep (estimate events of the walker).
     ests = [e for e in read_events(a.detections, 'estimate') if e.get('target') == device and e.get('los') is not None]
@@ -230,7 +268,7 @@ def main():
                 'median_abs_err': float(np.median(e)) if len(e) else float('nan'),
                 'p90_abs_err': float(np.percentile(e, 90)) if len(e) else float('nan')}
 
-    res = {'scene': a.scene, 'device': device, 'detections': len(dets), 'false': false,
+    res = {'scene': a.scene, 'device': device, 'detections': len(dets), 'false': false, 'cut_by_end': len(cut),
            'all': summary(rows), 'los': summary([r for r in rows if r['los']]),
            'nlos': summary([r for r in rows if not r['los']]),
            'verdicts': {'all': verdicts(vrows), 'los': verdicts([v for v in vrows if v[0]]),
@@ -238,7 +276,8 @@ def main():
     if a.json:
         print(json.dumps(res, indent=1))
     else:
-        print(f"{a.scene}: {len(dets)} detections, {false} false")
+        print(f"{a.scene}: {len(dets)} detections, {false} false"
+              f"{f'; {len(cut)} beeps not whole in the recording (not scored)' if cut else ''}")
         for k in ('all', 'los', 'nlos'):
             s = res[k]
             print(f"  {k:4s}: {s['beeps']} beeps, found {s['found']}, right identity {s['identity_ok']} "

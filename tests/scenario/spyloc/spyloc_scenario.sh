@@ -2,7 +2,8 @@
 # SpyLoc scenario test (issue 16, docs/spyloc.md): fixed seeds of `locus simulate spyloc` through the
 # shipped config (config/spyloc.yaml):
 #   - detection: >= 98 % of the LoS beeps found with the right identity (the issue's bar; measured
-#     98.2 % and 99.1 % on seeds 101 and 102) and >= 60 % of those with the first path within 1 sample
+#     100 % and 100 % on seeds 101 and 102 — beeps the recording does not hold whole are not scored;
+#     98.2 / 99.1 % when they were) and >= 60 % of those with the first path within 1 sample
 #     (regression bar; measured 73.1 % and 63.8 %, before the multipath onset fit 44 %; the issue's bar
 #     is 90 %), and >= 95 % of the published LoS/NLoS verdicts right (regression bar per seed; measured
 #     95.9 % and 98.2 %, 92.7 / 93.9 % with the decay's verdict alone; the issue's 96 % holds pooled over
@@ -75,9 +76,9 @@ else
 fi
 
 # Interferers (docs/spyloc.md "Beeps inside an interferer's burst"): babble and music bursts, 6 per
-# minute, ~10 dB louder near the tones than spyloc-104's. Regression bars: LoS found >= 96 % (measured
-# 97.3 % and 98.3 % on seeds 101 and 105; 94.5 / 92.3 % before the burst handling of 2026-11-29; the
-# issue's 98 % is not met with interferers, 96.9 % pooled over 101-120), p90 <= 0.8 m.
+# minute, ~10 dB louder near the tones than spyloc-104's. Bars: LoS found >= 98 % (the issue's; measured
+# 99.1 % and 99.1 % on seeds 101 and 105; 96.3 / 92.3 % before the burst handling of 2026-11-29;
+# pooled over 101-120 98.1 %, held-out 121-140 97.8 %), p90 <= 0.8 m.
 for seed in 101 105; do
   sc="$tmp/i$seed"
   timeout 120 "$locus" simulate spyloc "$sc" --seed "$seed" -q -o bursts=mixed -o bursts_per_minute=6
@@ -89,7 +90,7 @@ for seed in 101 105; do
   if [ "$status" -ne 0 ]; then
     echo "[interferers, seed $seed] p90 bar missed (exit $status):"; cat "$sc.log" "$sc.eval.txt" 2>/dev/null; fail=1
   else
-    score_detection "[interferers, seed $seed]" "$sc" --min-los-found 0.96
+    score_detection "[interferers, seed $seed]" "$sc" --min-los-found 0.98
   fi
 done
 
