@@ -54,6 +54,7 @@ struct Pending {
   std::array<double, 16> level{};  // median tone-bank power over the body, per tone
   std::array<double, 16> head{};   // ... over its first half (a burst may cover the rest of the beep)
   std::array<double, 16> floor{};  // floors when it opened
+  bool opened_active = false;      // the tone set was already active when it opened (a burst, a tail)
 };
 
 struct Channel {
@@ -74,6 +75,7 @@ struct Channel {
   bool opened_once = false;
   bool last_body_short = false;  // the last body was active for less than half a beep: a blip, not a beep
   bool body_pattern = false;      // a candidate's tone pattern showed in the body's first hops
+  bool body_opened_active = false;  // the tone set was active on the hop before the body opened
   bool last_pattern = false;      // ... in the last body opened
   std::vector<std::uint32_t> pat_high_run;   // per candidate: hops in a row its contrast is over pattern_db
   std::vector<std::uint32_t> pat_since_low;  // per candidate: hops since its contrast was under pattern_low_db
@@ -81,6 +83,8 @@ struct Channel {
   std::size_t pend_head = 0, pend_n = 0;
   std::uint64_t start_frame = 0;  // first valid frame since restart
   std::uint64_t end_frame = 0;
+  std::uint64_t last_det_open = 0;  // open frame of the body of the last beep reported
+  std::uint32_t last_det_mask = 0;  // ... and its identity (0: none yet)
   bool started = false;
 };
 
@@ -342,6 +346,7 @@ class MultitoneDetector final : public Detector {
     ch.opened_once = false;
     ch.body_pattern = false;
     ch.last_pattern = false;
+    ch.last_det_mask = 0;
     std::fill(ch.pat_high_run.begin(), ch.pat_high_run.end(), 0u);
     std::fill(ch.pat_since_low.begin(), ch.pat_since_low.end(), 1u << 30);
     ch.start_frame = frame;
@@ -359,6 +364,7 @@ class MultitoneDetector final : public Detector {
     ++ch.pend_n;
     p.open_frame = ch.open_frame;
     p.ready_frame = ch.open_frame + after_;
+    p.opened_active = ch.body_opened_active;
     const std::size_t n = std::min<std::size_t>(static_cast<std::size_t>(std::max(ch.body_hops, 1)), kMaxBodyHops);
     const std::size_t nh = std::max<std::size_t>(std::min<std::size_t>(n, 3), n / 2);
     for (std::size_t k = 0; k < tones_.size(); ++k) {
@@ -460,6 +466,7 @@ class MultitoneDetector final : public Detector {
     ch.body_hops = 1;
     ch.body_pattern = pattern_now;
     ch.last_pattern = pattern_now;
+    ch.body_opened_active = ch.was_active;
     std::copy(pow_.begin(), pow_.end(), ch.body.begin());
   }
 
@@ -675,8 +682,11 @@ class MultitoneDetector final : public Detector {
     // With candidates the identity already says a beep is there; under an interferer's burst (the
     // tones outside the identity over identity_db; the noise reference is the burst) its onset may
     // not clear onset_threshold_db: a second pass at weak_onset_threshold_db, the same sustain rule.
-    // (Not in a beep's own tail, where the tones outside it are quiet.)
-    const int passes_edge = !candidates_.empty() && background_db_ > 3.0 ? 2 : 1;
+    // Also when the body opened while the tone set was already active (a burst whose tones outside
+    // the identity stay low), unless it is the last reported beep's own tail.
+    // (Not in a quiet beep's tail: its reflections would be timed as a first path.)
+    const bool own_tail = mask == ch.last_det_mask && p.open_frame < ch.last_det_open + len_ + tail_;
+    const int passes_edge = !candidates_.empty() && (background_db_ > 3.0 || (p.opened_active && !own_tail)) ? 2 : 1;
     for (int pe = 0; pe < passes_edge && edge == lags; ++pe) {
       const double thr = (pe == 0 ? onset_thr_ : weak_onset_thr_) * noise;
       for (std::size_t l = noise_len_; l < lags; ++l) {
@@ -799,6 +809,8 @@ class MultitoneDetector final : public Detector {
     d.envelope_frame = envelope;
     d.carrier_period = static_cast<float>(period);
     if (!out.emit(Event{d})) ++dropped_;
+    ch.last_det_open = p.open_frame;
+    ch.last_det_mask = mask;
 
     // Decay features on the smoothed band-passed energy.
     DecayFeatures f;

@@ -45,7 +45,9 @@
 //      of the next 3 onset lengths (a blip in the search window is not a beep's start), marks the
 //      leading edge (so a weak diffracted first path, 20-30 dB under later echoes, is still found
 //      when it clears the noise). When that finds nothing under a burst (the identity's background
-//      over 3 dB: the noise reference is the burst), a second pass at weak_onset_threshold_db. Then a
+//      over 3 dB, or the body opened while the tone set was already active and is not the last
+//      reported beep's own tail: the noise reference holds the burst), a second pass at
+//      weak_onset_threshold_db. Then a
 //      least-squares fit of the beep's onset a·s(t−τ) (complex amplitude: cos and sin templates,
 //      template zero before τ) over a window fixed for all candidates τ of a pass, ending
 //      fit_window_s after the current estimate: maximise the projected (explained) energy over τ on a

@@ -78,7 +78,7 @@ fi
 # Interferers (docs/spyloc.md "Beeps inside an interferer's burst"): babble and music bursts, 6 per
 # minute, ~10 dB louder near the tones than spyloc-104's. Bars: LoS found >= 98 % (the issue's; measured
 # 99.1 % and 99.1 % on seeds 101 and 105; 96.3 / 92.3 % before the burst handling of 2026-11-29;
-# pooled over 101-120 98.1 %, held-out 121-140 97.8 %), p90 <= 0.8 m.
+# pooled over 101-120 98.3 %, held-out 121-140 98.3 %), p90 <= 0.8 m.
 for seed in 101 105; do
   sc="$tmp/i$seed"
   timeout 120 "$locus" simulate spyloc "$sc" --seed "$seed" -q -o bursts=mixed -o bursts_per_minute=6
