@@ -144,6 +144,13 @@ double fuse_los(double p_los_decay, double innovation_m, double innovation_std_m
   return num / den;
 }
 
+double temper_los(double p, double scale) noexcept {
+  if (scale == 1.0 || !std::isfinite(p)) return p;
+  const double q = std::clamp(p, 1e-300, 1.0 - 1e-16);
+  const double log_odds = scale * std::log(q / (1.0 - q));
+  return 1.0 / (1.0 + std::exp(-std::clamp(log_odds, -700.0, 700.0)));
+}
+
 double LosClassifier::p_los(const DecayVector& f) const noexcept {
   if (!ready()) return 0.5;
   double a = std::log(prior_los_), b = std::log(1.0 - prior_los_);

@@ -75,6 +75,13 @@ class LosClassifier {
 /// nlos_excess_max_m <= 0 or a non-finite input. [RT-safe: no allocation]
 double fuse_los(double p_los_decay, double innovation_m, double innovation_std_m, double nlos_excess_max_m) noexcept;
 
+/// P(LoS) with its log-odds scaled by `scale` (0 < scale <= 1): the classifier multiplies six
+/// correlated decay times as if independent, so its odds are overstated (a burst over a beep's tail
+/// drives a LoS beep's to 1e-4 and below, beyond what a range's innovation can answer). scale 1
+/// returns p.
+/// [RT-safe]
+double temper_los(double p, double scale) noexcept;
+
 /// [main] EM for a 1-D mixture (exposed for the tests).
 Mixture1d fit_mixture_1d(const std::vector<double>& x, int components, double sd_floor);
 

@@ -94,6 +94,7 @@ class SpyLocLocalizer final : public Localizer {
     std_floor_ = params.get_float("std_floor_m");
     nlos_bias_m_ = params.get_float("nlos_bias_m");
     nlos_excess_max_m_ = params.get_float("nlos_excess_max_m");
+    decay_evidence_scale_ = params.get_float("decay_evidence_scale");
     tcfg_.accel_std_mps2 = params.get_float("accel_std_mps2");
     tcfg_.max_speed_mps = params.get_float("max_speed_mps");
     tcfg_.gate_sigma = params.get_float("gate_sigma");
@@ -346,8 +347,9 @@ class SpyLocLocalizer final : public Localizer {
   /// p90 0.70 -> 2.7 m, docs/spyloc.md "LoS/NLoS verdict").
   double verdict(double p_los_decay, const RangePrediction& pred, double range_m, double range_var_m2) const {
     if (pdr_active() ? pdr_spread_m() > 1.0 : ambiguous_) return p_los_decay;
-    return std::max(p_los_decay,
-                    fuse_los(p_los_decay, range_m - pred.range_m, std::sqrt(pred.var_m2 + range_var_m2), nlos_excess_max_m_));
+    // The decay's log-odds tempered (decay_evidence_scale, temper_los) before the innovation weighs them.
+    return std::max(p_los_decay, fuse_los(temper_los(p_los_decay, decay_evidence_scale_), range_m - pred.range_m,
+                                          std::sqrt(pred.var_m2 + range_var_m2), nlos_excess_max_m_));
   }
   /// Dead reckoning: how far the hypotheses nearly as likely as the best (within 3 in log-likelihood)
   /// are from it.
@@ -588,7 +590,7 @@ class SpyLocLocalizer final : public Localizer {
   Logger* log_ = nullptr;
   std::string instance_, device_, detector_;
   double c_ = 343.2, z_ = 1.2, height_std_ = 0.25, range_std_ = 0.08, max_range_ = 40.0, slack_s_ = 0.002;
-  double nlos_bias_m_ = 0.0, nlos_excess_max_m_ = 8.0;
+  double nlos_bias_m_ = 0.0, nlos_excess_max_m_ = 8.0, decay_evidence_scale_ = 0.3;
   double los_thr_ = 0.5, init_window_s_ = 1.5, std_scale_ = 1.42, std_floor_ = 0.05;
   int reinit_after_ = 3;
   std::vector<double> region_;
@@ -646,6 +648,9 @@ const ParamSchema& schema() {
       float_param("nlos_excess_max_m", 8.0, 0.0, 100.0, "m",
                   "The verdict weighs the decay's P(LoS) by the range's innovation against the track: an NLoS range is "
                   "longer than predicted by up to this (uniform); 0 = the decay's verdict alone (docs/spyloc.md)."),
+      float_param("decay_evidence_scale", 0.3, 0.05, 1.0, "",
+                  "In that weighing, the decay's log-odds are scaled by this (its six decay times are correlated: the "
+                  "naive-Bayes product overstates them)."),
       float_param("init_window_s", 1.5, 0.1, 30.0, "s", "LoS ranges of >= 3 beacons within this make the first fix."),
       int_param("reinit_after", std::int64_t{3}, 1, 1000, "", "Gated-out LoS ranges among the last 2x this many after which a new fix replaces the track."),
       float_param("accel_std_mps2", 0.6, 0.01, 50.0, "m/s^2", "White acceleration of the constant-velocity tracker."),

@@ -447,6 +447,23 @@ TEST(SpyLocClassifier, FuseLosWeighsTheInnovation) {
   }
 }
 
+// The decay's odds tempered: a burst over a beep's tail drives the naive-Bayes P(LoS) of a LoS beep to
+// 1e-4 and below; on the track (ν = 0, σ 0.2 m: likelihood ratio ~32) the untempered verdict stays
+// NLoS, the tempered one (0.3: odds 0.06) is LoS; a range 3 m long stays NLoS either way; 0.5 and
+// the sign of the log-odds are kept.
+TEST(SpyLocClassifier, TemperedDecayOddsLetTheTrackAnswer) {
+  EXPECT_DOUBLE_EQ(temper_los(0.2, 1.0), 0.2);
+  EXPECT_NEAR(temper_los(0.5, 0.3), 0.5, 1e-12);
+  EXPECT_LT(temper_los(0.2, 0.3), 0.5);
+  EXPECT_GT(temper_los(0.2, 0.3), 0.2);
+  EXPECT_GT(temper_los(0.9, 0.3), 0.5);
+  EXPECT_LT(temper_los(0.9, 0.3), 0.9);
+  const double p = 1e-4;
+  EXPECT_LT(fuse_los(p, 0.0, 0.2, 8.0), 0.5);
+  EXPECT_GT(fuse_los(temper_los(p, 0.3), 0.0, 0.2, 8.0), 0.5);
+  EXPECT_LT(fuse_los(temper_los(p, 0.3), 3.0, 0.2, 8.0), 0.01);
+}
+
 // Dead reckoning in the plugin: three beacons heard for 8 s, then only one for 22 s while the walker
 // turns twice. The steps (in a frame rotated by an unknown 0.7 rad, strides 10 % long) carry the
 // track through the turns; the constant-velocity tracker (dead_reckoning: false, same events) cannot.
