@@ -444,12 +444,17 @@ class MultitoneDetector final : public Detector {
     // Inside a long activity (an interferer's burst: bodies open on it back to back) they learn in
     // bodies too, each hop's power clipped at 6 dB over the floor, so that a beep inside the burst
     // moves them by less than a dB while the burst's level is followed within about a second.
+    // Digital silence (a stream that starts before its source is connected: every tone exactly 0)
+    // teaches them nothing: floors learnt on it would sit at 0 and the clip would hold them there
+    // (a live walker under load lost half its beeps so).
+    bool silent = true;
+    for (std::size_t k = 0; k < tones_.size() && silent; ++k) silent = !(pow_[k] > 0.0);
     const bool long_activity = warm && ch.active_run > max_active_hops_;
-    const bool learn = (!ch.in_body && (!warm || ch.hops_since_active > hold_hops_)) || long_activity;
+    const bool learn = !silent && ((!ch.in_body && (!warm || ch.hops_since_active > hold_hops_)) || long_activity);
     if (learn) {
       for (std::size_t k = 0; k < tones_.size(); ++k) {
         const double b = std::max(beta_, 1.0 / static_cast<double>(ch.floor_n + 1));
-        const double v = long_activity ? std::min(pow_[k], 4.0 * ch.floor[k]) : pow_[k];
+        const double v = long_activity && ch.floor[k] > 0.0 ? std::min(pow_[k], 4.0 * ch.floor[k]) : pow_[k];
         ch.floor[k] += b * (v - ch.floor[k]);
       }
       ++ch.floor_n;
