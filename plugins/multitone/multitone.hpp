@@ -28,6 +28,8 @@
 //      candidate's pattern in its first hops yields to such a start (it is dropped, the beep gets its
 //      own body), and a body may open on one within a beep's length after such a body. Inside a
 //      long activity the floors learn in bodies too, each hop clipped at 6 dB over the floor;
+//      digital silence (every tone exactly 0: a live stream before its source is connected)
+//      teaches the floors nothing;
 //   3. identity: per tone, the median tone-bank power over the body frames; tone k is on when it
 //      exceeds its floor by identity_db (a mean over many frames, so lower than threshold_db) and
 //      lies within relative_db of the strongest tone. With
