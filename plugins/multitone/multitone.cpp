@@ -47,6 +47,14 @@ using cf = std::complex<float>;
 constexpr std::size_t kMaxPending = 8;
 constexpr std::size_t kOs = 8;  // fine-fit grid: 1/kOs sample
 constexpr std::size_t kMaxBodyHops = 64;  // body hops kept for the identity's median
+constexpr std::uint32_t kLongAgo = 1u << 30;  // hop counters saturate here ("never")
+
+// [RT] Median (upper middle) of v[0..n), reordering it in place; 0 when n = 0.
+double median_in_place(double* v, std::size_t n) noexcept {
+  if (n == 0) return 0.0;
+  std::nth_element(v, v + n / 2, v + n);
+  return v[n / 2];
+}
 
 struct Pending {
   std::uint64_t open_frame = 0;   // hop end when the beep opened
@@ -254,7 +262,7 @@ class MultitoneDetector final : public Detector {
       ch.floor.assign(tones_.size(), 0.0);
       ch.body.assign(kMaxBodyHops * tones_.size(), 0.0);
       ch.pat_high_run.assign(candidates_.size(), 0);
-      ch.pat_since_low.assign(candidates_.size(), 1u << 30);
+      ch.pat_since_low.assign(candidates_.size(), kLongAgo);
     }
     lvl_db_.assign(tones_.size(), 0.0);
     frame_buf_.assign(frame_, 0.0f);
@@ -348,7 +356,7 @@ class MultitoneDetector final : public Detector {
     ch.last_pattern = false;
     ch.last_det_mask = 0;
     std::fill(ch.pat_high_run.begin(), ch.pat_high_run.end(), 0u);
-    std::fill(ch.pat_since_low.begin(), ch.pat_since_low.end(), 1u << 30);
+    std::fill(ch.pat_since_low.begin(), ch.pat_since_low.end(), kLongAgo);
     ch.start_frame = frame;
     ch.end_frame = frame;
     ch.started = true;
@@ -379,8 +387,7 @@ class MultitoneDetector final : public Detector {
   // [RT] Median of tone k's power over the first n body hops.
   double body_median(const Channel& ch, std::size_t k, std::size_t n) noexcept {
     for (std::size_t h = 0; h < n; ++h) med_[h] = ch.body[h * tones_.size() + k];
-    std::nth_element(med_.begin(), med_.begin() + static_cast<std::ptrdiff_t>(n / 2), med_.begin() + static_cast<std::ptrdiff_t>(n));
-    return med_[n / 2];
+    return median_in_place(med_.data(), n);
   }
 
   // [RT] One tone-bank hop: floors, opening and closing of beeps, analysis of the ready ones.
@@ -502,7 +509,7 @@ class MultitoneDetector final : public Detector {
       const double contrast = in / std::max(n_in, 1) - (n_out > 0 ? out / n_out : 0.0);
       std::uint32_t& run = ch.pat_high_run[j];
       std::uint32_t& since_low = ch.pat_since_low[j];
-      since_low = contrast < pat_low_db_ ? 0 : std::min<std::uint32_t>(since_low + 1, 1u << 30);
+      since_low = contrast < pat_low_db_ ? 0 : std::min<std::uint32_t>(since_low + 1, kLongAgo);
       run = contrast > pat_db_ ? run + 1 : 0;
       pattern_now = pattern_now || run >= 2;
       edge = edge || (run == 2 && since_low <= 5);
@@ -510,11 +517,14 @@ class MultitoneDetector final : public Detector {
     return edge;
   }
 
-  // [RT] Identity of a beep from its per-tone body levels; 0 = not a beep of the set.
-  std::uint32_t identity(const Pending& p, const std::array<double, 16>& level, double& snr_db, double& conf) noexcept {
+  // [RT] Identity of a beep from its per-tone body levels; 0 = not a beep of the set. With
+  // candidates, `background_db` = the median level (dB over the floors, >= 0) of the tones outside
+  // the chosen one: what an interferer's burst raised alike.
+  std::uint32_t identity(const Pending& p, const std::array<double, 16>& level, double& snr_db, double& conf,
+                         double& background_db) noexcept {
     double lmax = 0.0, pmax = 0.0;
     std::array<double, 16> l{};
-    background_db_ = 0.0;
+    background_db = 0.0;
     for (std::size_t k = 0; k < tones_.size(); ++k) {
       l[k] = 10.0 * std::log10(std::max(level[k], 1e-30) / std::max(p.floor[k], 1e-30));
       lmax = std::max(lmax, l[k]);
@@ -542,23 +552,17 @@ class MultitoneDetector final : public Detector {
       // The candidate must explain the strong tones: every tone within 10 dB of the strongest is in
       // it, unless that tone is no more than 6 dB over the median of the tones outside it (an
       // interferer's burst raises every tone alike; another beacon's tone stands out of them).
-      std::size_t n_out = 0;
+      std::size_t n_out = 0, n_in = 0;
       for (std::size_t k = 0; k < tones_.size(); ++k)
         if (!((arg >> k) & 1u)) out_db_[n_out++] = l[k];
-      double background = 0.0;
-      if (n_out > 0) {
-        std::nth_element(out_db_.begin(), out_db_.begin() + static_cast<std::ptrdiff_t>(n_out / 2), out_db_.begin() + static_cast<std::ptrdiff_t>(n_out));
-        background = std::max(0.0, out_db_[n_out / 2]);
-      }
-      background_db_ = background;
+      const double background = std::max(0.0, median_in_place(out_db_.data(), n_out));
+      background_db = background;
       for (std::size_t k = 0; k < tones_.size(); ++k)
         if (l[k] > lmax - 10.0 && l[k] > id_db_ && l[k] > background + 6.0 && !((arg >> k) & 1u)) return 0;
       // ... and its own tones stand out of that background (median 6 dB over it: not the burst alone).
-      std::size_t n_in = 0;
       for (std::size_t k = 0; k < tones_.size(); ++k)
         if ((arg >> k) & 1u) out_db_[n_in++] = l[k];
-      std::nth_element(out_db_.begin(), out_db_.begin() + static_cast<std::ptrdiff_t>(n_in / 2), out_db_.begin() + static_cast<std::ptrdiff_t>(n_in));
-      if (n_in == 0 || !(out_db_[n_in / 2] > background + 6.0)) return 0;
+      if (n_in == 0 || !(median_in_place(out_db_.data(), n_in) > background + 6.0)) return 0;
       mask = arg;
       conf = candidates_.size() > 1 ? std::clamp((best - second) / std::max(lmax, 1e-9), 0.0, 1.0) : 1.0;
     }
@@ -646,9 +650,10 @@ class MultitoneDetector final : public Detector {
   void finalize(std::uint32_t c, const Pending& p, EventSink& out) noexcept {
     Channel& ch = chans_[c];
     double snr_db = 0.0, conf = 0.0;
-    std::uint32_t mask = identity(p, p.level, snr_db, conf);
+    double background_db = 0.0;
+    std::uint32_t mask = identity(p, p.level, snr_db, conf, background_db);
     // An interferer's burst that starts during the beep covers the rest of its body: its first half.
-    if (mask == 0 && !candidates_.empty()) mask = identity(p, p.head, snr_db, conf);
+    if (mask == 0 && !candidates_.empty()) mask = identity(p, p.head, snr_db, conf, background_db);
     if (mask == 0) {
       ++rejected_;
       return;
@@ -691,7 +696,7 @@ class MultitoneDetector final : public Detector {
     // the identity stay low), unless it is the last reported beep's own tail.
     // (Not in a quiet beep's tail: its reflections would be timed as a first path.)
     const bool own_tail = mask == ch.last_det_mask && p.open_frame < ch.last_det_open + len_ + tail_;
-    const int passes_edge = !candidates_.empty() && (background_db_ > 3.0 || (p.opened_active && !own_tail)) ? 2 : 1;
+    const int passes_edge = !candidates_.empty() && (background_db > 3.0 || (p.opened_active && !own_tail)) ? 2 : 1;
     for (int pe = 0; pe < passes_edge && edge == lags; ++pe) {
       const double thr = (pe == 0 ? onset_thr_ : weak_onset_thr_) * noise;
       for (std::size_t l = noise_len_; l < lags; ++l) {
@@ -880,7 +885,6 @@ class MultitoneDetector final : public Detector {
   double thr_ = 10.0, thr_db_ = 10.0, id_db_ = 6.0, beta_ = 0.01, rise_ = 4.0, rel_ = 0.003, onset_thr_ = 30.0;
   double pat_db_ = 12.0, pat_low_db_ = 4.0, weak_onset_thr_ = 8.0;
   std::uint64_t weak_edges_ = 0;
-  double background_db_ = 0.0;  // the last identity's background: median level of the tones outside it, dB
   std::vector<double> lvl_db_;  // per tone: power over floor this hop, dB
   int min_tones_ = 1;
   bool coherent_ = false;
@@ -907,7 +911,7 @@ class MultitoneDetector final : public Detector {
   std::vector<float> frame_buf_, seg_, re_, im_;
   std::vector<double> pow_, env_, stat_, sorted_;
   std::array<double, kMaxBodyHops> med_{};
-  std::array<double, 16> out_db_{};
+  std::array<double, 16> out_db_{};  // identity's scratch: levels in / outside a candidate
   std::vector<cf> spec_y_, spec_w_;
   std::uint64_t expected_ = 0;
   bool have_expected_ = false;

@@ -24,13 +24,13 @@ trap 'rm -rf "$tmp"' EXIT
 fail=0
 py=""
 for cand in /usr/bin/python3 python3; do
-  if command -v "$cand" >/dev/null && "$cand" -c 'import numpy, yaml' 2>/dev/null; then py="$cand"; break; fi
+  if command -v "$cand" >/dev/null && "$cand" -c 'import numpy, yaml, scipy' 2>/dev/null; then py="$cand"; break; fi
 done
 
 score_detection() {  # label scene bars...: the detection bars, by check_spyloc_arrivals.py
   local label="$1" sc="$2" status=0
   shift 2
-  if [ -z "$py" ]; then echo "$label detection not scored: python3 with numpy and yaml not found"; return; fi
+  if [ -z "$py" ]; then echo "$label detection not scored: python3 with numpy, yaml and scipy not found"; return; fi
   "$py" "$src/tools/scripts/check_spyloc_arrivals.py" "$sc" "$sc.jsonl" "$@" >"$sc.det.txt" 2>&1 || status=$?
   if [ "$status" -ne 0 ]; then
     echo "$label detection bar missed:"; cat "$sc.det.txt"; fail=1
