@@ -8,16 +8,12 @@
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
+#include "number_text.hpp"
 
 namespace locus::hal::alsa {
 
 namespace {
 
-std::string num(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
 
 ParamSchema make_schema(bool capture) {
   ParamSchema s;

@@ -6,21 +6,17 @@
 #include <numbers>
 #include <sstream>
 #include <stdexcept>
+#include "locus/numbers.hpp"
+#include "number_text.hpp"
 
 namespace locus::hal::synth {
 
 namespace {
 
-constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr double kSilentDbfs = -200.0;
 
 [[noreturn]] void fail(const std::string& message) { throw std::runtime_error("synth: " + message); }
 
-std::string num(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
 
 constexpr std::uint64_t mix64(std::uint64_t z) noexcept {  // splitmix64 finaliser
   z += 0x9E3779B97F4A7C15ull;

@@ -19,12 +19,12 @@
 #include <stdexcept>
 
 #include "locus/angles.hpp"
+#include "locus/numbers.hpp"
 
 namespace locus::plugins::amil {
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr double kReliableTimingFactor = 5.0;  // an arrival is reliable when its timing std <= this x the base
 
 /// The heard beeps of one listener, in metres, relative to the first heard beep.

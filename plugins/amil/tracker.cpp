@@ -4,12 +4,12 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include "locus/numbers.hpp"
 
 namespace locus::plugins::amil {
 
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
 
 Eigen::Quaterniond rotation_vector(const Eigen::Vector3d& v) {
   const double angle = v.norm();

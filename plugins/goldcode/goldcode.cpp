@@ -19,12 +19,12 @@
 #include "locus/dsp/signals.hpp"
 #include "locus/dsp/simd.hpp"
 #include "locus/fftw_planner.hpp"
+#include "locus/numbers.hpp"
 
 namespace locus::plugins::goldcode {
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 using cf = std::complex<float>;
 using cd = std::complex<double>;
 

@@ -16,6 +16,7 @@
 #include "locus/dsp/iir.hpp"
 #include "locus/dsp/onset_fit.hpp"
 #include "locus/dsp/signals.hpp"
+#include "locus/numbers.hpp"
 
 namespace locus::plugins::multitone {
 
@@ -42,7 +43,6 @@ std::array<float, 6> decay_times(std::span<const double> e, std::size_t peak_fro
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 using cf = std::complex<float>;
 constexpr std::size_t kMaxPending = 8;
 constexpr std::size_t kOs = 8;  // fine-fit grid: 1/kOs sample

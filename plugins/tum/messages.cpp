@@ -4,13 +4,13 @@
 #include <cmath>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include "locus/numbers.hpp"
 
 namespace locus::plugins::tum {
 
 namespace {
 
 using json = nlohmann::ordered_json;
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 json vec(const Vec3a& v) { return json::array({v[0], v[1], v[2]}); }
 

@@ -4,12 +4,12 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include "locus/numbers.hpp"
 
 namespace locus::plugins::tum {
 
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
 
 Eigen::Matrix3d rot_z(double psi) {
   return Eigen::AngleAxisd(psi, Eigen::Vector3d::UnitZ()).toRotationMatrix();

@@ -4,12 +4,12 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include "locus/numbers.hpp"
 
 namespace locus::plugins::tum {
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 Eigen::Matrix3d relative_rotation(const DeviceExchange& d1, const DeviceExchange& d) {
   if (!d1.attitude || !d.attitude) return Eigen::Matrix3d::Identity();

@@ -17,12 +17,12 @@
 #include "solver.hpp"
 #include "sync.hpp"
 #include "tracker.hpp"
+#include "locus/numbers.hpp"
 
 namespace locus::plugins::tum {
 
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kNaNd = std::numeric_limits<double>::quiet_NaN();
 
 struct Detection {

@@ -46,15 +46,13 @@ const ParamSchema* tri_schema() {
   static const ParamSchema schema = {float_param("max_range_m", 10.0, 0.0, 100.0, "m", "")};
   return &schema;
 }
-Detector* make_detector() { return new test::NullDetector; }
-Localizer* make_localizer() { return new test::NullLocalizer; }
 
 const locus_plugin_descriptor kOnset{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_DETECTOR, "onset", "1", "onsets",
-                                     kInputAudio, &onset_schema, &make_detector, nullptr};
+                                     kInputAudio, &onset_schema, &test::make_null_detector, nullptr};
 const locus_plugin_descriptor kXcorr{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_DETECTOR, "xcorr", "1", "xcorr",
-                                     kInputAudio, &xcorr_schema, &make_detector, nullptr};
+                                     kInputAudio, &xcorr_schema, &test::make_null_detector, nullptr};
 const locus_plugin_descriptor kTri{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_LOCALIZER, "tri", "1", "trilateration",
-                                   0, &tri_schema, nullptr, &make_localizer};
+                                   0, &tri_schema, nullptr, &test::make_null_localizer};
 
 class ConfigTest : public ::testing::Test {
  protected:

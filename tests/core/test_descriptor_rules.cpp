@@ -15,21 +15,15 @@
 namespace locus {
 namespace {
 
-const ParamSchema* empty_schema() {
-  static const ParamSchema schema;
-  return &schema;
-}
 const ParamSchema* throwing_schema() { throw std::runtime_error("boom"); }
-Detector* make_detector() { return new test::NullDetector; }
-Localizer* make_localizer() { return new test::NullLocalizer; }
 
 locus_plugin_descriptor detector(const char* name = "onset") {
   return locus_plugin_descriptor{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_DETECTOR, name, "1.0", "test detector",
-                                 kInputAudio, &empty_schema, &make_detector, nullptr};
+                                 kInputAudio, &test::empty_schema, &test::make_null_detector, nullptr};
 }
 locus_plugin_descriptor localizer() {
   return locus_plugin_descriptor{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_LOCALIZER, "tri", "1.0", "test localizer",
-                                 0, &empty_schema, nullptr, &make_localizer};
+                                 0, &test::empty_schema, nullptr, &test::make_null_localizer};
 }
 
 DescriptorRule rule_of(const locus_plugin_descriptor& d) {
@@ -75,7 +69,7 @@ TEST(DescriptorRules, EveryFieldHasItsRule) {
 
 TEST(DescriptorRules, EachKindHasExactlyItsOwnFactoryAndADetectorItsInputs) {
   auto d = detector();
-  d.create_localizer = &make_localizer;
+  d.create_localizer = &test::make_null_localizer;
   EXPECT_EQ(descriptor_fault(&d)->reason, "a detector that also sets create_localizer");
   d = detector();
   d.inputs = 0;
@@ -83,7 +77,7 @@ TEST(DescriptorRules, EachKindHasExactlyItsOwnFactoryAndADetectorItsInputs) {
   d.inputs = kInputImu | 0x40u;
   EXPECT_EQ(descriptor_fault(&d)->reason, "unknown input bits " + std::to_string(kInputImu | 0x40u));
   auto l = localizer();
-  l.create_detector = &make_detector;
+  l.create_detector = &test::make_null_detector;
   EXPECT_EQ(descriptor_fault(&l)->reason, "a localizer that also sets create_detector");
 }
 

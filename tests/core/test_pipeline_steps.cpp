@@ -72,7 +72,6 @@ class SpyDetector final : public Detector {
 };
 
 Detector* make_spy() { return new SpyDetector; }
-Localizer* make_localizer() { return new test::NullLocalizer; }
 
 const locus_plugin_descriptor kAudioDetector{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_DETECTOR, "audio_spy", "1", "d",
                                              kInputAudio, &no_params, &make_spy, nullptr};
@@ -81,7 +80,7 @@ const locus_plugin_descriptor kImuDetector{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGI
 const locus_plugin_descriptor kBothDetector{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_DETECTOR, "both_spy", "1", "d",
                                             kInputAudio | kInputImu, &no_params, &make_spy, nullptr};
 const locus_plugin_descriptor kLocalizer{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_LOCALIZER, "null_loc", "1", "l", 0,
-                                         &no_params, nullptr, &make_localizer};
+                                         &no_params, nullptr, &test::make_null_localizer};
 
 struct Steps : ::testing::Test {
   Steps() {

@@ -12,10 +12,6 @@
 namespace locus {
 namespace {
 
-const ParamSchema* empty_schema() {
-  static const ParamSchema schema;
-  return &schema;
-}
 const ParamSchema* bad_default_schema() {
   static const ParamSchema schema = [] {
     ParamSpec s;
@@ -27,16 +23,14 @@ const ParamSchema* bad_default_schema() {
   return &schema;
 }
 const ParamSchema* null_schema() { return nullptr; }
-Detector* make_detector() { return new test::NullDetector; }
-Localizer* make_localizer() { return new test::NullLocalizer; }
 
 locus_plugin_descriptor detector_descriptor(const char* name) {
   return locus_plugin_descriptor{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_DETECTOR, name, "1.0", "test detector",
-                                 kInputAudio, &empty_schema, &make_detector, nullptr};
+                                 kInputAudio, &test::empty_schema, &test::make_null_detector, nullptr};
 }
 locus_plugin_descriptor localizer_descriptor(const char* name) {
   return locus_plugin_descriptor{LOCUS_PLUGIN_ABI_VERSION, LOCUS_PLUGIN_LOCALIZER, name, "1.0", "test localizer",
-                                 0, &empty_schema, nullptr, &make_localizer};
+                                 0, &test::empty_schema, nullptr, &test::make_null_localizer};
 }
 
 std::string add_error(Registry& r, const locus_plugin_descriptor* d, const std::string& origin = "built-in") {

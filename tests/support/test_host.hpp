@@ -275,6 +275,14 @@ class NullLocalizer : public Localizer {
   void on_event(const Event&, Publisher&) override {}
 };
 
+/// Descriptor callbacks for registry and config tests: a NullDetector, a NullLocalizer, an empty schema.
+inline Detector* make_null_detector() { return new NullDetector; }
+inline Localizer* make_null_localizer() { return new NullLocalizer; }
+inline const ParamSchema* empty_schema() {
+  static const ParamSchema schema;
+  return &schema;
+}
+
 /// A one-channel, 44.1 kHz source that has already finished.
 class NullSource : public AudioSource {
  public:

@@ -9,12 +9,12 @@
 #include <nlohmann/json.hpp>
 
 #include "locus/eval/error.hpp"
+#include "locus/numbers.hpp"
 
 namespace locus::eval {
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr std::size_t kMaxListed = 50;
 
 using json = nlohmann::json;

@@ -10,12 +10,12 @@
 #include <sstream>
 
 #include "locus/eval/error.hpp"
+#include "locus/numbers.hpp"
 
 namespace locus::eval {
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 using ojson = nlohmann::ordered_json;
 
 std::string cell(const ojson& v) {

@@ -19,12 +19,6 @@ namespace locus::map {
 
 namespace {
 
-std::int64_t mono_ns() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 std::vector<std::string> split_topic(const std::string& topic) {
   std::vector<std::string> out;
   std::size_t start = 0;

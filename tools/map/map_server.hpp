@@ -31,6 +31,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
+#include <ctime>
 #include <deque>
 #include <memory>
 #include <mutex>
@@ -54,6 +55,13 @@ class Server;
 }
 
 namespace locus::map {
+
+/// [any] CLOCK_MONOTONIC in nanoseconds (the hub's and the server's timestamps).
+inline std::int64_t mono_ns() noexcept {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
 
 /// A bad --http address or parameter, or a socket that could not be bound. what() names the key or
 /// host:port and the reason.

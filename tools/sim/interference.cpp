@@ -5,12 +5,12 @@
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
+#include "locus/numbers.hpp"
 
 namespace locus::sim {
 
 namespace {
 
-constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
 // Adds a decaying (or gated) differentiated-white-noise segment: energy rising +6 dB/octave to fs/2.
 void add_bright_noise(std::vector<double>& out, std::size_t k0, std::size_t len, double level, double tau_s,

@@ -15,13 +15,12 @@
 #include <variant>
 
 #include "locus/fixed_string.hpp"
+#include "locus/numbers.hpp"
 
 namespace locus {
 
 using DeviceId = FixedString<32>;
 using NameTag = FixedString<32>;
-
-inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 /// A detector found a known signal in an audio stream.
 struct AudioDetection {

@@ -4,11 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include "locus/numbers.hpp"
 
 namespace locus::dsp {
 
 namespace {
-constexpr double kInf = std::numeric_limits<double>::infinity();
 }
 
 Dtw::Dtw(std::size_t max_length, DtwCost cost) : max_length_(max_length), cost_(cost) {

@@ -6,11 +6,11 @@
 #include <numbers>
 #include <stdexcept>
 #include <string>
+#include "locus/numbers.hpp"
 
 namespace locus::dsp {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 
 double bessel_i0(double x) {
   // Power series; converges fast for the beta values of FIR design (< 50).

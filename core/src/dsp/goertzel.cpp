@@ -5,11 +5,11 @@
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
+#include "locus/numbers.hpp"
 
 namespace locus::dsp {
 
 namespace {
-constexpr double kPi = std::numbers::pi;
 }
 
 std::complex<double> goertzel_bin(std::span<const float> x, double freq_hz, double fs) noexcept {

@@ -6,12 +6,12 @@
 #include <numbers>
 #include <stdexcept>
 #include <string>
+#include "locus/numbers.hpp"
 
 namespace locus::dsp {
 namespace {
 
 using cd = std::complex<double>;
-constexpr double kPi = std::numbers::pi;
 
 enum class Band { low, high, pass, stop };
 

@@ -6,12 +6,12 @@
 #include <numbers>
 #include <stdexcept>
 #include <string>
+#include "locus/numbers.hpp"
 
 namespace locus::dsp {
 
 namespace {
 
-constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
 void require(bool ok, const std::string& what) {
   if (!ok) throw std::invalid_argument(what);

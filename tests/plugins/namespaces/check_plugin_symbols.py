@@ -28,13 +28,18 @@ def main() -> int:
     seen_folders = set()
     for obj in objects:
         # CMake puts plugins/<folder>/<file>.cpp's object at .../locus_builtins.dir/<folder>/<file>.cpp.o
+        # (or, unity-built, the folder's batch at .../locus_builtins.dir/Unity/unity_<folder>_cxx.cxx.o).
         # Only the path below locus_builtins.dir names the folder: a build tree under a directory that
         # happens to share a plugin's name (a checkout in .../tum/build) must not count as that plugin.
-        parts = obj.replace("\\", "/").split("/")
+        parts = [p for p in obj.replace("\\", "/").split("/") if p != "."]  # CMake writes .../locus_builtins.dir/./Unity/...
         if "locus_builtins.dir" not in parts:
             continue
         below = parts[len(parts) - 1 - parts[::-1].index("locus_builtins.dir") + 1:-1]
         folder = next((p for p in below if p in folders), None)
+        # A unity build (LOCUS_UNITY_BUILD) batches each folder into .../Unity/unity_<folder>_cxx.cxx.o.
+        unity = re.match(r"^unity_(.+)_cxx\.cxx\.o$", parts[-1]) if below == ["Unity"] else None
+        if folder is None and unity and unity.group(1) in folders:
+            folder = unity.group(1)
         if folder is None:
             continue
         seen_folders.add(folder)

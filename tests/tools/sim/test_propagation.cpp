@@ -15,7 +15,7 @@ using test::listener;
 using test::quiet_simulation;
 using test::test_chirp;
 
-constexpr double kFs = 44100.0;
+constexpr double kRateHz = 44100.0;
 
 // Static pair, skewed and offset receiver clock: every rendered sample equals the analytic delayed
 // signal, and the fitted arrival lies at fs·local_from_true(te0 + r/c) within 0.05 samples.
@@ -32,16 +32,16 @@ TEST(SimPropagation, StaticPairMatchesAnalyticDelayAndClockModel) {
 
   const double c = s.acoustics.speed_of_sound_mps, r = (rx - src).norm();
   const double t_arr = te0 + r / c;
-  const double expected_frame = clock.local_from_true(t_arr) * kFs;
+  const double expected_frame = clock.local_from_true(t_arr) * kRateHz;
   const auto first = static_cast<std::uint64_t>(expected_frame) - 200;
   const auto audio = sim.render_audio("R", first, 2400);
   ASSERT_EQ(audio.size(), 1u);
 
   // sample by sample against the closed form
-  const dsp::SignalEvaluator ev(sig, kFs);
+  const dsp::SignalEvaluator ev(sig, kRateHz);
   double max_err = 0.0, peak = 0.0;
   for (std::size_t i = 0; i < audio[0].size(); ++i) {
-    const double t = clock.true_from_local(static_cast<double>(first + i) / kFs);
+    const double t = clock.true_from_local(static_cast<double>(first + i) / kRateHz);
     const double want = s.acoustics.level_at_1m / r * ev.value(t - r / c - te0);
     max_err = std::max(max_err, std::abs(want - audio[0][i]));
     peak = std::max(peak, std::abs(want));
@@ -51,10 +51,10 @@ TEST(SimPropagation, StaticPairMatchesAnalyticDelayAndClockModel) {
 
   std::vector<float> x(static_cast<std::size_t>(first), 0.0f);
   x.insert(x.end(), audio[0].begin(), audio[0].end());
-  const double fitted = fit_arrival_frame(x, sig, kFs, expected_frame, 3.0, 1.0 + clock.skew_ppm * 1e-6);
+  const double fitted = fit_arrival_frame(x, sig, kRateHz, expected_frame, 3.0, 1.0 + clock.skew_ppm * 1e-6);
   EXPECT_NEAR(fitted, expected_frame, 0.05);
   // and the skew matters: ignoring it would be ~40 samples off
-  EXPECT_GT(std::abs((t_arr + clock.offset_s) * kFs - expected_frame), 30.0);
+  EXPECT_GT(std::abs((t_arr + clock.offset_s) * kRateHz - expected_frame), 30.0);
 }
 
 // A source moving at constant speed towards a static receiver: the received tone frequency is
@@ -76,12 +76,12 @@ TEST(SimPropagation, MovingSourceGivesDoppler) {
     s.emitters.push_back(emitter("E", tr, tone));
     s.emissions.push_back(Emission{"E", 0, 1.0, 0.0});
     SceneSimulator sim(s);
-    const auto audio = sim.render_audio("R", 0, static_cast<std::size_t>(3.0 * kFs));
+    const auto audio = sim.render_audio("R", 0, static_cast<std::size_t>(3.0 * kRateHz));
     // zero crossings with linear interpolation over the middle of the received tone
     const auto& x = audio[0];
     const double c = s.acoustics.speed_of_sound_mps;
     const double arrive = (1.0 + 10.0 / c + 0.1) + clock.offset_s;  // well inside the tone (local s)
-    const auto k0 = static_cast<std::size_t>(arrive * kFs), k1 = k0 + static_cast<std::size_t>(0.6 * kFs);
+    const auto k0 = static_cast<std::size_t>(arrive * kRateHz), k1 = k0 + static_cast<std::size_t>(0.6 * kRateHz);
     double first = -1, last = -1;
     int crossings = 0;
     for (std::size_t k = k0; k < k1; ++k) {
@@ -94,7 +94,7 @@ TEST(SimPropagation, MovingSourceGivesDoppler) {
       }
     }
     ASSERT_GT(crossings, 100);
-    const double f_local = (crossings - 1) / ((last - first) / kFs);
+    const double f_local = (crossings - 1) / ((last - first) / kRateHz);
     const double f_expected = 3000.0 * c / (c - v) / (1.0 + clock.skew_ppm * 1e-6);
     EXPECT_NEAR(f_local, f_expected, 0.05) << "v=" << v;
     EXPECT_GT(std::abs(f_local - 3000.0), 40.0);
@@ -118,13 +118,13 @@ TEST(SimPropagation, MovingBothMatchesRetardedTimeSolution) {
   s.emitters.push_back(emitter("E", src_tr, sig));
   s.emissions.push_back(Emission{"E", 0, 0.5, 0.0});
   SceneSimulator sim(s);
-  const auto audio = sim.render_audio("R", 0, static_cast<std::size_t>(1.0 * kFs));
-  const dsp::SignalEvaluator ev(sig, kFs);
+  const auto audio = sim.render_audio("R", 0, static_cast<std::size_t>(1.0 * kRateHz));
+  const dsp::SignalEvaluator ev(sig, kRateHz);
   const double c = s.acoustics.speed_of_sound_mps;
   double max_err = 0.0;
   int nonzero = 0;
   for (std::size_t k = 0; k < audio[0].size(); ++k) {
-    const double t = d.clock.true_from_local(static_cast<double>(k) / kFs);
+    const double t = d.clock.true_from_local(static_cast<double>(k) / kRateHz);
     const Eigen::Vector3d pm = d.trajectory->pose(t).position_m;
     double te = t;  // Newton-free bisection on f(te) = t − te − |pm − ps(te)|/c (monotone)
     double lo = t - 1.0, hi = t;
@@ -159,21 +159,21 @@ TEST(SimPropagation, FirstReflectionMatchesMirroredGeometry) {
     s.emissions.push_back(Emission{"E", 0, 0.7, 0.0});
     return SceneSimulator(s);
   };
-  const auto a1 = make(1).render_audio("R", 0, static_cast<std::size_t>(1.5 * kFs));
-  const auto a0 = make(0).render_audio("R", 0, static_cast<std::size_t>(1.5 * kFs));
+  const auto a1 = make(1).render_audio("R", 0, static_cast<std::size_t>(1.5 * kRateHz));
+  const auto a0 = make(0).render_audio("R", 0, static_cast<std::size_t>(1.5 * kRateHz));
   std::vector<float> refl(a1[0].size());
   for (std::size_t i = 0; i < refl.size(); ++i) refl[i] = a1[0][i] - a0[0][i];
   const double c = 343.2;
   const Eigen::Vector3d mirrored(src.x(), src.y(), -src.z());
   const double r1 = (rx - mirrored).norm();
-  const double expected = clock.local_from_true(0.7 + r1 / c) * kFs;
+  const double expected = clock.local_from_true(0.7 + r1 / c) * kRateHz;
   // the next reflection (a wall, 2·9 m away) comes much later: the fit window holds the floor only
-  const double fitted = fit_arrival_frame(refl, test_chirp(), kFs, expected, 4.0, 1.0 + clock.skew_ppm * 1e-6);
+  const double fitted = fit_arrival_frame(refl, test_chirp(), kRateHz, expected, 4.0, 1.0 + clock.skew_ppm * 1e-6);
   EXPECT_NEAR(fitted, expected, 0.05);
   // amplitude β/r': peak of the reflection vs the direct path's 1/r
   float peak_refl = 0, peak_direct = 0;
   for (std::size_t i = 0; i < refl.size(); ++i) {
-    if (std::abs(static_cast<double>(i) - expected) < 0.05 * kFs) peak_refl = std::max(peak_refl, std::abs(refl[i]));
+    if (std::abs(static_cast<double>(i) - expected) < 0.05 * kRateHz) peak_refl = std::max(peak_refl, std::abs(refl[i]));
     peak_direct = std::max(peak_direct, std::abs(a0[0][i]));
   }
   const double r0 = (rx - src).norm();
@@ -190,13 +190,13 @@ TEST(SimPropagation, ObstructionAttenuatesDirectPathOnly) {
     s.emitters.push_back(emitter("E", std::make_shared<StaticTrajectory>(Eigen::Vector3d(4, 3, 1)), test_chirp()));
     s.emissions.push_back(Emission{"E", 0, 0.3, 0.0});
     if (obstructed) s.acoustics.obstructions.push_back(Obstruction{"R", "E", 20.0});
-    return SceneSimulator(s).render_audio("R", 0, static_cast<std::size_t>(0.6 * kFs))[0];
+    return SceneSimulator(s).render_audio("R", 0, static_cast<std::size_t>(0.6 * kRateHz))[0];
   };
   const auto clear = make(false), blocked = make(true);
   const double direct = 0.3 + 2.0 / 343.2;
   float peak_clear = 0, peak_blocked = 0, late_diff = 0;
   for (std::size_t i = 0; i < clear.size(); ++i) {
-    const double t = static_cast<double>(i) / kFs;
+    const double t = static_cast<double>(i) / kRateHz;
     if (t >= direct && t < direct + 0.002) {  // before the floor reflection (+0.83 m = 2.4 ms)
       peak_clear = std::max(peak_clear, std::abs(clear[i]));
       peak_blocked = std::max(peak_blocked, std::abs(blocked[i]));
@@ -227,7 +227,7 @@ TEST(SimPropagation, PartitionBlocksTheReflectionsThatCrossIt) {
       if (mode == 2) o.wall_m = {{Eigen::Vector2d(3, 2), Eigen::Vector2d(3, 4)}};
       s.acoustics.obstructions.push_back(o);
     }
-    return SceneSimulator(s).render_audio("R", 0, static_cast<std::size_t>(0.6 * kFs))[0];
+    return SceneSimulator(s).render_audio("R", 0, static_cast<std::size_t>(0.6 * kRateHz))[0];
   };
   auto max_abs_diff = [](const std::vector<float>& a, const std::vector<float>& b, double scale_b) {
     double m = 0.0, peak = 0.0;
@@ -257,9 +257,9 @@ TEST(SimPropagation, SelfRecordingRevealsLatency) {
   const double latency = 0.0873;
   s.emissions.push_back(Emission{"P", 0, 0.5, latency});
   SceneSimulator sim(s);
-  const auto audio = sim.render_audio("P", 0, static_cast<std::size_t>(1.5 * kFs));
-  const double expected = d.clock.local_from_true(0.5 + latency + 0.03 / 343.2) * kFs;
-  const double fitted = fit_arrival_frame(audio[0], test_chirp(), kFs, expected, 3.0, 1.0 + d.clock.skew_ppm * 1e-6);
+  const auto audio = sim.render_audio("P", 0, static_cast<std::size_t>(1.5 * kRateHz));
+  const double expected = d.clock.local_from_true(0.5 + latency + 0.03 / 343.2) * kRateHz;
+  const double fitted = fit_arrival_frame(audio[0], test_chirp(), kRateHz, expected, 3.0, 1.0 + d.clock.skew_ppm * 1e-6);
   EXPECT_NEAR(fitted, expected, 0.05);
   float peak = 0;
   for (float v : audio[0]) peak = std::max(peak, std::abs(v));

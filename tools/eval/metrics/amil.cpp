@@ -9,7 +9,7 @@
 
 namespace locus::eval::registered_metrics {
 
-namespace {
+namespace amil_metric {  // named, not anonymous: the metric files share a unity build
 
 using ojson = nlohmann::ordered_json;
 
@@ -127,10 +127,10 @@ void score(GroupContext& g) {
   listeners(g);
 }
 
-}  // namespace
+}  // namespace amil_metric
 
 const Metric& amil() {
-  static const Metric metric{"amil", "AMIL: per-listener direction / distance / position error in the player frame, listeners located", expects, true, score};
+  static const Metric metric{"amil", "AMIL: per-listener direction / distance / position error in the player frame, listeners located", amil_metric::expects, true, amil_metric::score};
   return metric;
 }
 

@@ -4,7 +4,7 @@
 
 namespace locus::eval::registered_metrics {
 
-namespace {
+namespace locble_metric {  // named, not anonymous: the metric files share a unity build
 
 bool expects(const TargetQuery& q) {
   const TruthObject& o = q.object;
@@ -15,10 +15,10 @@ void score(GroupContext& g) {
   score_positions(g, /*final_only=*/true);
 }
 
-}  // namespace
+}  // namespace locble_metric
 
 const Metric& locble() {
-  static const Metric metric{"locble", "LocBLE: per-tag position error of the final estimate", expects, false, score};
+  static const Metric metric{"locble", "LocBLE: per-tag position error of the final estimate", locble_metric::expects, false, locble_metric::score};
   return metric;
 }
 

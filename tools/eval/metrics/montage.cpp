@@ -9,7 +9,7 @@
 
 namespace locus::eval::registered_metrics {
 
-namespace {
+namespace montage_metric {  // named, not anonymous: the metric files share a unity build
 
 using ojson = nlohmann::ordered_json;
 
@@ -29,10 +29,10 @@ void score(GroupContext& g) {
   score_strides(g, plugin);
 }
 
-}  // namespace
+}  // namespace montage_metric
 
 const Metric& montage() {
-  static const Metric metric{"montage", "Montage: trace deviation (% of the path) and stride error against truth_steps.csv", expects, false, score};
+  static const Metric metric{"montage", "Montage: trace deviation (% of the path) and stride error against truth_steps.csv", montage_metric::expects, false, montage_metric::score};
   return metric;
 }
 

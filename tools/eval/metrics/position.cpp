@@ -4,7 +4,7 @@
 
 namespace locus::eval::registered_metrics {
 
-namespace {
+namespace position_metric {  // named, not anonymous: the metric files share a unity build
 
 bool expects(const TargetQuery& q) {
   const TruthObject& o = q.object;
@@ -15,10 +15,10 @@ void score(GroupContext& g) {
   score_positions(g, /*final_only=*/false);
 }
 
-}  // namespace
+}  // namespace position_metric
 
 const Metric& position() {
-  static const Metric metric{"position", "generic: per-estimate position error in any frame (mean, median, p80, p90, max, rms)", expects, false, score};
+  static const Metric metric{"position", "generic: per-estimate position error in any frame (mean, median, p80, p90, max, rms)", position_metric::expects, false, position_metric::score};
   return metric;
 }
 

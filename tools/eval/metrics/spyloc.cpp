@@ -8,7 +8,7 @@
 
 namespace locus::eval::registered_metrics {
 
-namespace {
+namespace spyloc_metric {  // named, not anonymous: the metric files share a unity build
 
 using ojson = nlohmann::ordered_json;
 
@@ -65,10 +65,10 @@ void score(GroupContext& g) {
   if (!g.scored().empty()) score_strides(g, g.scored().front().e->plugin);
 }
 
-}  // namespace
+}  // namespace spyloc_metric
 
 const Metric& spyloc() {
-  static const Metric metric{"spyloc", "SpyLoc: position error CDF (median, p80, p90) and the LoS/NLoS split", expects, false, score};
+  static const Metric metric{"spyloc", "SpyLoc: position error CDF (median, p80, p90) and the LoS/NLoS split", spyloc_metric::expects, false, spyloc_metric::score};
   return metric;
 }
 

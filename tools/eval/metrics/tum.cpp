@@ -8,7 +8,7 @@
 
 namespace locus::eval::registered_metrics {
 
-namespace {
+namespace tum_metric {  // named, not anonymous: the metric files share a unity build
 
 using ojson = nlohmann::ordered_json;
 
@@ -90,10 +90,10 @@ void score(GroupContext& g) {
   pair_distances(g);
 }
 
-}  // namespace
+}  // namespace tum_metric
 
 const Metric& tum() {
-  static const Metric metric{"tum", "TUM Eq. 23: mean absolute pairwise distance error per snapshot", expects, false, score};
+  static const Metric metric{"tum", "TUM Eq. 23: mean absolute pairwise distance error per snapshot", tum_metric::expects, false, tum_metric::score};
   return metric;
 }
 

@@ -7,11 +7,11 @@
 #include <stdexcept>
 
 #include "locus/sim/rng.hpp"
+#include "locus/numbers.hpp"
 
 namespace locus::sim::motion {
 namespace {
 
-constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
 // Minimum-jerk profile and its derivatives with respect to u.
 double mj(double u) { return u * u * u * (10.0 + u * (-15.0 + 6.0 * u)); }

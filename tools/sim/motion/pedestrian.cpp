@@ -9,12 +9,11 @@
 
 #include "locus/angles.hpp"
 #include "locus/sim/rng.hpp"
+#include "locus/numbers.hpp"
 
 namespace locus::sim::motion {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-constexpr double kTwoPi = 2.0 * std::numbers::pi;
 
 // Quintic smoothstep: 0 → 1 on [0, 1] with zero first and second derivatives at both ends.
 double smooth5(double u) {
