@@ -15,6 +15,7 @@
 // simulator's NLoS beeps started 1-3 ms after it and decayed like LoS ones). Syncs are
 // lost with probability sync_loss and jitter by ±sync_jitter_s. Step model s = a·f + b.
 // Truth: truth.csv, truth_steps.csv, truth_los.csv (t_true,beacon,los: 1/0 per beep, geometric).
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -50,8 +51,12 @@ Simulation make_spyloc(const FamilyOptions& opts) {
   const double sync_jitter_s = opts.get_double("sync_jitter_s", 100e-6, 0.0, 0.01);
   const int laps = static_cast<int>(opts.get_int("laps", 1, 1, 5));
   const bool partition = opts.get_int("partition", 1, 0, 1) == 1;
-  const std::string bursts = opts.get_choice("bursts", "white", {"white", "babble", "music", "mixed"});
-  const double bursts_per_minute = opts.get_double("bursts_per_minute", -1.0, -1.0, 60.0);
+  // Interferers by default, as the world has them (the foreign spyloc-104: babble and music, 3 in 40 s):
+  // every difficulty but easy gets babble / music bursts at >= 4 a minute (AMIL's default is the same kind).
+  const bool easy = opts.difficulty == Difficulty::Easy;
+  const std::string bursts = opts.get_choice("bursts", easy ? "white" : "mixed", {"white", "babble", "music", "mixed"});
+  const double bursts_per_minute =
+      opts.get_double("bursts_per_minute", easy ? -1.0 : std::max(4.0, prof.bursts_per_minute), -1.0, 60.0);
   opts.finish("spyloc");
 
   Simulation sim;
@@ -202,9 +207,9 @@ const Family& spyloc() {
        {"laps", "int", "1", "laps of the 16x8 m loop"},
        {"partition", "int", "1", "1: the wall is a floor-to-ceiling partition: reflections whose route crosses it "
                                  "lose what the direct path loses; 0: only the direct path is obstructed"},
-       {"bursts", "white|babble|music|mixed", "white", "noise bursts: white (the difficulty's), or babble / music / "
+       {"bursts", "white|babble|music|mixed", "mixed (easy: white)", "noise bursts: white (the difficulty's), or babble / music / "
                                                         "either (0.3-3 s, energy up to 20 kHz: the foreign spyloc-104's interferers)"},
-       {"bursts_per_minute", "double", "-1", "noise bursts per minute; -1 = the difficulty's"}},
+       {"bursts_per_minute", "double", "max(4, the difficulty's) (easy: -1)", "noise bursts per minute; -1 = the difficulty's"}},
       make_spyloc};
   return family;
 }
