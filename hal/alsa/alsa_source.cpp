@@ -14,7 +14,6 @@ namespace locus::hal::alsa {
 
 namespace {
 
-
 ParamSchema make_schema(bool capture) {
   ParamSchema s;
   s.push_back(string_param("pcm", std::string("default"),

@@ -10,7 +10,6 @@ namespace locus::plugins::amil {
 
 namespace {
 
-
 Eigen::Quaterniond rotation_vector(const Eigen::Vector3d& v) {
   const double angle = v.norm();
   if (angle < 1e-12) return Eigen::Quaterniond(1.0, 0.5 * v.x(), 0.5 * v.y(), 0.5 * v.z()).normalized();

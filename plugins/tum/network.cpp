@@ -10,7 +10,6 @@ namespace locus::plugins::tum {
 
 namespace {
 
-
 Eigen::Matrix3d rot_z(double psi) {
   return Eigen::AngleAxisd(psi, Eigen::Vector3d::UnitZ()).toRotationMatrix();
 }

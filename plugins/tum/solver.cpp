@@ -10,7 +10,6 @@ namespace locus::plugins::tum {
 
 namespace {
 
-
 Eigen::Matrix3d relative_rotation(const DeviceExchange& d1, const DeviceExchange& d) {
   if (!d1.attitude || !d.attitude) return Eigen::Matrix3d::Identity();
   return (d1.attitude->conjugate() * *d.attitude).normalized().toRotationMatrix();  // Eq. 5: R1^-1 R2

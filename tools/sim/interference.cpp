@@ -11,7 +11,6 @@ namespace locus::sim {
 
 namespace {
 
-
 // Adds a decaying (or gated) differentiated-white-noise segment: energy rising +6 dB/octave to fs/2.
 void add_bright_noise(std::vector<double>& out, std::size_t k0, std::size_t len, double level, double tau_s,
                       bool gated, double fs, Rng& rng) {

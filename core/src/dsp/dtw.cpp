@@ -8,8 +8,6 @@
 
 namespace locus::dsp {
 
-namespace {
-}
 
 Dtw::Dtw(std::size_t max_length, DtwCost cost) : max_length_(max_length), cost_(cost) {
   if (max_length == 0) throw std::invalid_argument("Dtw: max_length must be >= 1");

@@ -11,7 +11,6 @@
 namespace locus::dsp {
 namespace {
 
-
 double bessel_i0(double x) {
   // Power series; converges fast for the beta values of FIR design (< 50).
   double sum = 1.0, term = 1.0;

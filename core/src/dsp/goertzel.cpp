@@ -9,8 +9,6 @@
 
 namespace locus::dsp {
 
-namespace {
-}
 
 std::complex<double> goertzel_bin(std::span<const float> x, double freq_hz, double fs) noexcept {
   const double w = 2.0 * kPi * freq_hz / fs;

@@ -12,7 +12,6 @@ namespace locus::dsp {
 
 namespace {
 
-
 void require(bool ok, const std::string& what) {
   if (!ok) throw std::invalid_argument(what);
 }

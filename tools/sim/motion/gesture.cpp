@@ -12,7 +12,6 @@
 namespace locus::sim::motion {
 namespace {
 
-
 // Minimum-jerk profile and its derivatives with respect to u.
 double mj(double u) { return u * u * u * (10.0 + u * (-15.0 + 6.0 * u)); }
 double mj1(double u) { return 30.0 * u * u * (1.0 - u) * (1.0 - u); }

@@ -14,7 +14,6 @@
 namespace locus::sim::motion {
 namespace {
 
-
 // Quintic smoothstep: 0 → 1 on [0, 1] with zero first and second derivatives at both ends.
 double smooth5(double u) {
   u = std::clamp(u, 0.0, 1.0);
