@@ -111,34 +111,51 @@ def environment_lookup(scene, y, readings):
     return lambda r: 'X'
 
 
+def mean_rss(theta, px, py, env_index, m):
+    """The model's mean RSS (dB, relative to the advertised power) at each reading. theta = (x, y,
+    G0, delta_0..delta_m-1, n_0..n_m-1); env_index: the class of each reading (0..m-1)."""
+    d = np.maximum(np.hypot(theta[0] - px, theta[1] - py), 0.1)
+    return theta[2] + theta[3 + env_index] - 10.0 * theta[3 + m + env_index] * np.log10(d)
+
+
+def jacobian(theta, px, py, env_index, m):
+    """d mean_rss / d theta, one row per reading."""
+    dx, dy = theta[0] - px, theta[1] - py
+    d = np.maximum(np.hypot(dx, dy), 0.1)
+    n = theta[3 + m + env_index]
+    g = np.zeros((len(d), 3 + 2 * m))
+    g[:, 0] = -10.0 * n / math.log(10.0) * dx / d ** 2
+    g[:, 1] = -10.0 * n / math.log(10.0) * dy / d ** 2
+    g[:, 2] = 1.0
+    rows = np.arange(len(d))
+    g[rows, 3 + env_index] = 1.0
+    g[rows, 3 + m + env_index] = -10.0 * np.log10(d)
+    return g
+
+
 def position_information(path, tag_xy, readings, a):
     """The Fisher information of one tag's (x, y) from its readings, its own nuisances (G0, delta_c,
-    n_c, with their priors) marginalised (Schur complement); also its mean distance and classes."""
+    n_c, with their priors) marginalised (Schur complement); also its mean distance and classes.
+    Linearised at the true position and the prior's exponent (a.n) in every class."""
     t = np.array([r['t_true'] for r in readings])
     px = np.interp(t, path[:, 0], path[:, 1])
     py = np.interp(t, path[:, 0], path[:, 2])
-    dx, dy = tag_xy[0] - px, tag_xy[1] - py
-    d = np.maximum(np.hypot(dx, dy), 0.1)
     env = ['X' if a.known_model else r['env'] for r in readings]
     classes = sorted(set(env))
     m = len(classes)
-    g = np.zeros((len(d), 3 + 2 * m))
-    g[:, 0] = -10.0 * a.n / math.log(10.0) * dx / d ** 2
-    g[:, 1] = -10.0 * a.n / math.log(10.0) * dy / d ** 2
-    g[:, 2] = 1.0
-    for k, e in enumerate(env):
-        c = classes.index(e)
-        g[k, 3 + c] = 1.0
-        g[k, 3 + m + c] = -10.0 * math.log10(d[k])
+    env_index = np.array([classes.index(e) for e in env], dtype=int)
+    theta = np.concatenate([[tag_xy[0], tag_xy[1], 0.0], np.zeros(m), np.full(m, a.n)])
+    g = jacobian(theta, px, py, env_index, m)
     walk = np.hypot(px[:, None] - px[None, :], py[:, None] - py[None, :])
-    same_env = np.array([[p == q for q in env] for p in env])
+    same_env = env_index[:, None] == env_index[None, :]
     channel = np.array([r['channel'] for r in readings])
-    cov = (a.fading_db ** 2 * np.eye(len(d)) + a.shadowing_db ** 2 * np.exp(-walk / a.decorrelation_m) * same_env
+    cov = (a.fading_db ** 2 * np.eye(len(t)) + a.shadowing_db ** 2 * np.exp(-walk / a.decorrelation_m) * same_env
            + a.channel_db ** 2 * (channel[:, None] == channel[None, :]))
     prior = [0.0, 0.0] + [a.common_db ** -2] + [a.link_db ** -2] * m + [a.n_sd ** -2] * m
     info = g.T @ np.linalg.solve(cov, g) + np.diag(prior)
     pos, cross, nuisance = info[:2, :2], info[:2, 2:], info[2:, 2:]
-    return pos - cross @ np.linalg.solve(nuisance, cross.T), float(np.mean(d)), classes
+    mean_distance = float(np.mean(np.hypot(tag_xy[0] - px, tag_xy[1] - py)))
+    return pos - cross @ np.linalg.solve(nuisance, cross.T), mean_distance, classes
 
 
 def rms_bound(position_info, a):
@@ -171,10 +188,26 @@ def main():
     ap.add_argument('--position-sd-m', type=float, default=11.5)
     ap.add_argument('--cluster-radius-m', type=float, default=0.0)
     ap.add_argument('--json', action='store_true')
-    a = ap.parse_args()
+    return run(ap.parse_args())
+
+
+def defaults(**overrides):
+    """The command line's defaults as a namespace (for tests and other scripts)."""
+    return argparse.Namespace(**{**dict(locus=None, config='config/locble.yaml', known_model=False, fading_db=3.5,
+                                        shadowing_db=1.3, decorrelation_m=2.5, channel_db=2.0, common_db=3.6,
+                                        link_db=4.0, n=2.5, n_sd=0.5, position_sd_m=11.5, cluster_radius_m=0.0,
+                                        json=False, scenes=[]), **overrides})
+
+
+def run_rows(a):
+    """One row per tag of every scene in a.scenes (bound, and the final error when a.locus is set)."""
     rows = []
     for scene in a.scenes:
-        y, observer, traj, readings = load_scene(scene)
+        try:
+            y, observer, traj, readings = load_scene(scene)
+        except (OSError, KeyError, StopIteration, ValueError, yaml.YAMLError) as e:
+            sys.exit(f'locble_bound: {scene}: cannot read the scene and its truth ({type(e).__name__}: {e}); '
+                     'expected scene.yaml with truth (clocks, trajectories), the observer\'s ble.csv, truth.csv')
         if observer not in traj:
             sys.exit(f'locble_bound: {scene}: truth has no trajectory for the observer {observer}')
         errors = final_errors(a.locus, a.config, scene) if a.locus else {}
@@ -196,6 +229,11 @@ def main():
                 row['cluster_size'] = len(members)
                 row['fused_bound_rms_m'] = rms_bound(sum(info[o][0] for o in members), a)
             rows.append(row)
+    return rows
+
+
+def run(a):
+    rows = run_rows(a)
     if a.json:
         print(json.dumps(rows, indent=1))
         return
