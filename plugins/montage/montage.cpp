@@ -125,6 +125,8 @@ class MontageLocalizer final : public Localizer {
     if (device_ == reporter_) {
       formation_ = std::make_unique<Formation>(users_, fc);
       book_ = RoundBook(params.get_float("round_match_s"));
+      pair_clocks_ = params.get_bool("pair_clocks");
+      one_way_ = params.get_bool("one_way_ranges");
       progress_.assign(users_.size(), -1e300);
       heard_wall_s_.assign(users_.size(), clock_->now_s());
       subs_.push_back(link_->subscribe(prefix_ + "/round/+", [this](const LinkMessage& m) { on_round(m); }));
@@ -204,7 +206,7 @@ class MontageLocalizer final : public Localizer {
         k += " " + users_[u] + " k=" + std::to_string(formation_->stride_scale(u)) +
              " offset=" + std::to_string(formation_->heading_offset_rad(u) * 180.0 / M_PI) + "deg";
       log_->info("montage reporter " + device_ + ": " + std::to_string(book_.rounds().size()) + " rounds, " +
-                 std::to_string(ranges_) + " ranges (" + std::to_string(formation_->dropped_ranges()) + " dropped as outliers), " +
+                 std::to_string(ranges_) + " two-way and " + std::to_string(one_way_ranges_) + " one-way ranges (" + std::to_string(formation_->dropped_ranges()) + " dropped as outliers), " +
                  std::to_string(late_reports_) + " late reports, " + std::to_string(published_) + " estimates;" + k);
     }
   }
@@ -383,9 +385,22 @@ class MontageLocalizer final : public Localizer {
       const bool ready = all || r.tau_s + wait_s_ <= min_progress;
       if (!ready) break;
       std::vector<RangeObs> ranges = round_ranges(r, users_, c_, max_range_);
+      // The pairs' clock lines (solver.hpp, PairClocks): a two-way round off its pair's line has a
+      // wrong arrival and is dropped; a pair that only one device heard is ranged one way.
+      if (pair_clocks_) learn_clocks(r, users_, c_, ranges, clocks_);
       ranges_ += ranges.size();
       for (const RangeObs& ro : ranges)
         log_->debug("montage range tau " + std::to_string(r.tau_s) + " " + users_[ro.i] + "-" + users_[ro.j] + " " + std::to_string(ro.distance_m));
+      if (pair_clocks_ && one_way_) {
+        const std::vector<RangeObs> one_way = one_way_ranges(r, users_, c_, max_range_, clocks_);
+        one_way_ranges_ += one_way.size();
+        for (const RangeObs& ro : one_way) {
+          clocks_.accept(ro.i, ro.j, r.tau_s, ro.distance_m);
+          log_->debug("montage one-way range tau " + std::to_string(r.tau_s) + " " + users_[ro.i] + "-" + users_[ro.j] + " " +
+                      std::to_string(ro.distance_m) + " sd " + std::to_string(ro.extra_std_m));
+        }
+        ranges.insert(ranges.end(), one_way.begin(), one_way.end());
+      }
       const std::size_t k = formation_->add_round(r.tau_s, std::move(ranges));
       const std::vector<UserFix> fixes = formation_->solve(k);
       processed_tau_ = r.tau_s;
@@ -526,7 +541,9 @@ class MontageLocalizer final : public Localizer {
   bool step_estimates_ = true;
   std::size_t next_round_ = 0;
   double processed_tau_ = -1e300;
-  std::uint64_t bad_ = 0, late_reports_ = 0, ranges_ = 0, published_ = 0;
+  std::uint64_t bad_ = 0, late_reports_ = 0, ranges_ = 0, one_way_ranges_ = 0, published_ = 0;
+  bool pair_clocks_ = true, one_way_ = false;
+  PairClocks clocks_;
   std::string first_bad_;
 };
 
@@ -557,6 +574,12 @@ const ParamSchema& schema() {
       float_param("solve_wait_s", 2.0, 0.0, 60.0, "s",
                   "The reporter solves a round once every user's messages have passed it by this much (steps lag)."),
       float_param("range_std_m", 0.15, 0.001, 10.0, "m", "1-sigma of an ETOA range in the formation adjustment."),
+      bool_param("pair_clocks", true,
+                 "Fit each pair's clock line to its two-way rounds and drop a two-way round off it: one of its arrivals "
+                 "is wrong (docs/montage.md, \"Pair clock lines\")."),
+      bool_param("one_way_ranges", false,
+                 "With pair_clocks: also range a round where only one device heard the other, through the pair's clock "
+                 "line (off: more ranges on the simulator, a wrong formation on montage-103; docs/montage.md)."),
       float_param("step_std_m", 0.08, 0.001, 2.0, "m", "Per-step error of a movement vector (isotropic)."),
       float_param("drift_std_m_per_m", 0.05, 0.0, 1.0, "", "Movement error growing with the distance walked."),
       float_param("offset_prior_std_rad", 0.35, 0.001, 10.0, "rad",

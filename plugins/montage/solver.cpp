@@ -84,6 +84,128 @@ std::vector<RangeObs> round_ranges(const Round& round, const std::vector<std::st
   return out;
 }
 
+namespace {
+
+std::optional<double> dt_of(const RoundMessage& m, const std::string& other) {
+  for (const auto& [u, dt] : m.arrivals)
+    if (u == other) return dt;
+  return std::nullopt;
+}
+
+/// rho_i(j) (solver.hpp, PairClocks): i's one-way view of the distance to j, before the clock term.
+double one_way_rho(const RoundMessage& mi, const RoundMessage& mj, double dt_i, double c_mps) {
+  return c_mps * (mi.tau_own_s + dt_i - mj.tau_own_s) + mj.self_m;
+}
+
+}  // namespace
+
+void PairClocks::add(std::size_t i, std::size_t j, double tau_s, double eps_s) {
+  if (!std::isfinite(tau_s) || !std::isfinite(eps_s)) return;
+  obs_[{std::min(i, j), std::max(i, j)}].emplace_back(tau_s, i < j ? eps_s : -eps_s);
+}
+
+std::optional<std::pair<double, double>> PairClocks::predict(std::size_t i, std::size_t j, double tau_s) const {
+  const auto it = obs_.find({std::min(i, j), std::max(i, j)});
+  if (it == obs_.end() || it->second.empty()) return std::nullopt;
+  const auto& o = it->second;
+  // Bayesian line eps = a + b·(tau − t0) (t0: the mean tau, so a and b decouple); a second pass drops
+  // the observations far off the first line (a wrong detection makes a wrong two-way round).
+  double t0 = 0.0;
+  for (const auto& [t, e] : o) t0 += t;
+  t0 /= static_cast<double>(o.size());
+  std::vector<char> use(o.size(), 1);
+  Eigen::Matrix2d cov;
+  Eigen::Vector2d mean;
+  for (int pass = 0; pass < 2; ++pass) {
+    const double w = 1.0 / (opt_.obs_std_s * opt_.obs_std_s);
+    // The prior on the offset is at the start (tau = 0): eps(0) = a − b·t0, so it couples a and b.
+    const Eigen::Vector2d h0(1.0, -t0);
+    Eigen::Matrix2d info = h0 * h0.transpose() / (opt_.offset_prior_s * opt_.offset_prior_s);
+    info(1, 1) += 1.0 / (opt_.skew_prior * opt_.skew_prior);
+    Eigen::Vector2d rhs = Eigen::Vector2d::Zero();
+    for (std::size_t k = 0; k < o.size(); ++k) {
+      if (!use[k]) continue;
+      const Eigen::Vector2d h(1.0, o[k].first - t0);
+      info += w * h * h.transpose();
+      rhs += w * h * o[k].second;
+    }
+    cov = info.inverse();
+    mean = cov * rhs;
+    if (pass == 1) break;
+    bool any = false;
+    for (std::size_t k = 0; k < o.size(); ++k) {
+      const Eigen::Vector2d h(1.0, o[k].first - t0);
+      const double sd = std::sqrt(opt_.obs_std_s * opt_.obs_std_s + h.dot(cov * h));
+      if (std::abs(o[k].second - h.dot(mean)) > opt_.outlier_sigma * sd && o.size() >= 3) {
+        use[k] = 0;
+        any = true;
+      }
+    }
+    if (!any) break;
+  }
+  const Eigen::Vector2d h(1.0, tau_s - t0);
+  const double eps = h.dot(mean), sd = std::sqrt(std::max(0.0, h.dot(cov * h)));
+  return std::make_pair(i < j ? eps : -eps, sd);
+}
+
+std::size_t PairClocks::count(std::size_t i, std::size_t j) const {
+  const auto it = obs_.find({std::min(i, j), std::max(i, j)});
+  return it == obs_.end() ? 0 : it->second.size();
+}
+
+std::optional<std::pair<double, double>> PairClocks::last(std::size_t i, std::size_t j) const {
+  const auto it = last_.find({std::min(i, j), std::max(i, j)});
+  if (it == last_.end()) return std::nullopt;
+  return it->second;
+}
+
+void learn_clocks(const Round& round, const std::vector<std::string>& users, double c_mps,
+                  std::vector<RangeObs>& two_way, PairClocks& clocks) {
+  const PairClockOptions& o = clocks.options();
+  std::vector<RangeObs> kept;
+  for (const RangeObs& ro : two_way) {
+    const auto a = round.reports.find(users[ro.i]), b = round.reports.find(users[ro.j]);
+    if (a == round.reports.end() || b == round.reports.end()) continue;
+    const auto dti = dt_of(a->second, users[ro.j]), dtj = dt_of(b->second, users[ro.i]);
+    if (!dti || !dtj) continue;
+    const double rho_i = one_way_rho(a->second, b->second, *dti, c_mps), rho_j = one_way_rho(b->second, a->second, *dtj, c_mps);
+    const double eps = (rho_j - rho_i) / (2.0 * c_mps);
+    if (clocks.count(ro.i, ro.j) >= static_cast<std::size_t>(o.min_two_way)) {
+      const auto line = clocks.predict(ro.i, ro.j, round.tau_s);
+      if (line && std::abs(eps - line->first) > o.outlier_sigma * std::hypot(o.obs_std_s, line->second)) continue;
+    }
+    clocks.add(ro.i, ro.j, round.tau_s, eps);
+    clocks.accept(ro.i, ro.j, round.tau_s, ro.distance_m);
+    kept.push_back(ro);
+  }
+  two_way = std::move(kept);
+}
+
+std::vector<RangeObs> one_way_ranges(const Round& round, const std::vector<std::string>& users, double c_mps,
+                                     double max_range_m, const PairClocks& clocks) {
+  std::vector<RangeObs> out;
+  for (std::size_t i = 0; i < users.size(); ++i)
+    for (std::size_t j = i + 1; j < users.size(); ++j) {
+      const auto a = round.reports.find(users[i]), b = round.reports.find(users[j]);
+      if (a == round.reports.end() || b == round.reports.end()) continue;
+      const auto dti = dt_of(a->second, users[j]), dtj = dt_of(b->second, users[i]);
+      if (dti.has_value() == dtj.has_value()) continue;  // two-way (round_ranges) or nothing
+      if (clocks.count(i, j) < static_cast<std::size_t>(clocks.options().min_two_way)) continue;
+      const auto eps = clocks.predict(i, j, round.tau_s);
+      const auto last = clocks.last(i, j);
+      if (!eps || !last || round.tau_s - last->first > clocks.options().max_gap_s) continue;
+      const double extra = c_mps * eps->second;
+      if (extra > clocks.options().max_extra_std_m) continue;
+      // eps is eps_ij: rho_i(j) = d − c·eps, rho_j(i) = d + c·eps.
+      const double d = dti ? one_way_rho(a->second, b->second, *dti, c_mps) + c_mps * eps->first
+                           : one_way_rho(b->second, a->second, *dtj, c_mps) - c_mps * eps->first;
+      if (!(d > 0.0) || d > max_range_m) continue;
+      if (std::abs(d - last->second) > clocks.options().max_speed_mps * (round.tau_s - last->first) + 3.0 * extra + 0.3) continue;
+      out.push_back(RangeObs{i, j, d, extra});
+    }
+  return out;
+}
+
 Formation::Formation(std::vector<std::string> users, FormationConfig cfg)
     : users_(std::move(users)), cfg_(cfg), tracks_(users_.size()), delta_(users_.size(), 0.0),
       scale_(users_.size(), 1.0), localized_(users_.size(), 0) {}
@@ -148,14 +270,14 @@ std::vector<Formation::Candidate> Formation::pair_candidates(std::size_t i, std:
                                                              std::size_t k) const {
   struct Obs {
     std::size_t round;
-    double r;
+    double r, extra;
   };
   std::vector<Obs> obs;
   const std::size_t a = std::min(i, j), b = std::max(i, j);
   for (std::size_t q = base; q <= k; ++q)
     for (std::size_t n = 0; n < rounds_[q].ranges.size(); ++n) {
       const RangeObs& ro = rounds_[q].ranges[n];
-      if (ro.i == a && ro.j == b && !rounds_[q].dropped[n]) obs.push_back(Obs{q, ro.distance_m});
+      if (ro.i == a && ro.j == b && !rounds_[q].dropped[n]) obs.push_back(Obs{q, ro.distance_m, ro.extra_std_m});
     }
   if (obs.size() < 2) return {};
   const std::size_t f = obs.front().round;
@@ -169,7 +291,7 @@ std::vector<Formation::Candidate> Formation::pair_candidates(std::size_t i, std:
     d[n] = mj - mi;
     max_rel = std::max(max_rel, d[n].norm());
     const double drift = cfg_.drift_std_m_per_m * (mi.norm() + mj.norm()) + 0.03 * (mi.norm() + mj.norm());
-    sig[n] = std::hypot(cfg_.range_std_m, drift);
+    sig[n] = std::sqrt(cfg_.range_std_m * cfg_.range_std_m + drift * drift + obs[n].extra * obs[n].extra);
   }
   if (max_rel < 0.5) return {};  // the two moved alike: every orientation fits (infinite solutions)
   constexpr int kN = 360;
@@ -347,7 +469,7 @@ void Formation::adjust(std::size_t k) {
         if (rd.dropped[m] || !localized_[ro.i] || !localized_[ro.j]) continue;
         const Eigen::Vector2d dv = positions_[q][ro.j] - positions_[q][ro.i];
         const double len = std::max(dv.norm(), 1e-6);
-        const double sig = range_sigma();
+        const double sig = range_sigma(ro);
         const double e = (len - ro.distance_m) / sig;
         const double w = std::abs(e) <= cfg_.huber_k ? 1.0 : cfg_.huber_k / std::abs(e);
         const Eigen::Vector2d uvec = dv / len / sig;
@@ -459,7 +581,7 @@ void Formation::adjust(std::size_t k) {
       for (std::size_t m = 0; m < rd.ranges.size(); ++m) {
         const RangeObs& ro = rd.ranges[m];
         if (rd.dropped[m] || !localized_[ro.i] || !localized_[ro.j]) continue;
-        const double e = ((positions_[q][ro.j] - positions_[q][ro.i]).norm() - ro.distance_m) / range_sigma();
+        const double e = ((positions_[q][ro.j] - positions_[q][ro.i]).norm() - ro.distance_m) / range_sigma(ro);
         chi2 += e * e;
         ++nobs;
       }
@@ -497,7 +619,7 @@ void Formation::adjust(std::size_t k) {
       const RangeObs& ro = rd.ranges[m];
       if (rd.dropped[m] || !localized_[ro.i] || !localized_[ro.j]) continue;
       const double len = (positions_[q][ro.j] - positions_[q][ro.i]).norm();
-      if (std::abs(len - ro.distance_m) > cfg_.outlier_sigma * range_sigma() + 0.1 * len) {
+      if (std::abs(len - ro.distance_m) > cfg_.outlier_sigma * range_sigma(ro) + 0.1 * len) {
         rd.dropped[m] = 1;
         ++dropped_;
       }

@@ -33,6 +33,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <map>
 #include <optional>
@@ -74,12 +75,64 @@ class RoundBook {
 struct RangeObs {
   std::size_t i = 0, j = 0;  ///< user indices, i < j
   double distance_m = 0.0;
+  double extra_std_m = 0.0;  ///< added (in quadrature) to FormationConfig::range_std_m: a one-way range's clock model
 };
 
 /// The ETOA ranges of one round between users (indices into `users`), each checked: both devices
 /// reported each other, 0 < d <= max_range_m.
 std::vector<RangeObs> round_ranges(const Round& round, const std::vector<std::string>& users, double c_mps,
                                    double max_range_m);
+
+/// One-way ranges (ours, beyond the paper): a pair's round where only ONE device heard the other is
+/// lost to ETOA, which needs both arrivals. But the two devices' clocks are related by a line: with
+///   rho_i(j) = c·(tau_own_i + dt_i(j) − tau_own_j) + self_j      (i heard j)
+/// (tau since each device's own reception of the one radio start signal), rho_i(j) = d − c·eps and
+/// rho_j(i) = d + c·eps, where eps(tau) = a + b·tau is the pair's clock difference since the start
+/// (a: the two radio reception latencies; b: the clocks' skew difference, < 80 ppm). Each two-way
+/// round measures eps = (rho_j(i) − rho_i(j)) / 2c; a Bayesian line through them (priors on a and b)
+/// predicts eps at a one-way round, which then gives d = rho_i(j) + c·eps with the prediction's std.
+/// Wrong detections are the risk (a one-way range has no second arrival to average with; on
+/// montage-103 one device took a code ~80 ms late for four rounds running): a two-way round whose eps
+/// is far off the pair's line has a wrong arrival and is dropped (learn_clocks), and a one-way range
+/// must lie within max_speed_mps · Δtau of the pair's last accepted range.
+struct PairClockOptions {
+  double offset_prior_s = 2e-3;  ///< prior sd of a (radio reception latencies: < 1 ms apart in the foreign scenes)
+  double skew_prior = 6e-5;      ///< prior sd of b (skews up to ±40 ppm each)
+  double obs_std_s = 1e-4;       ///< sd of one two-way eps (detection timing, conservative)
+  double outlier_sigma = 5.0;    ///< a two-way eps this many sds off the others' line is not used
+  double max_extra_std_m = 0.3;  ///< a one-way range whose clock prediction is less certain is not made
+  int min_two_way = 2;           ///< two-way rounds of the pair before one-way ranges are made
+  double max_speed_mps = 3.0;    ///< how fast a pair's distance can change (two walkers)
+  double max_gap_s = 2.0;        ///< a one-way range needs an accepted range of the pair this recent
+};
+class PairClocks {
+ public:
+  explicit PairClocks(PairClockOptions opt = {}) : opt_(opt) {}
+  /// A two-way round of pair (i, j), i < j: its eps (s) at tau (s).
+  void add(std::size_t i, std::size_t j, double tau_s, double eps_s);
+  /// eps at tau and its sd, from the pair's two-way rounds (nullopt before the first).
+  std::optional<std::pair<double, double>> predict(std::size_t i, std::size_t j, double tau_s) const;
+  /// Two-way rounds of the pair so far.
+  std::size_t count(std::size_t i, std::size_t j) const;
+  /// The pair's latest accepted range (tau, d), for the one-way gate.
+  void accept(std::size_t i, std::size_t j, double tau_s, double d_m) { last_[{std::min(i, j), std::max(i, j)}] = {tau_s, d_m}; }
+  std::optional<std::pair<double, double>> last(std::size_t i, std::size_t j) const;
+  const PairClockOptions& options() const noexcept { return opt_; }
+
+ private:
+  PairClockOptions opt_;
+  std::map<std::pair<std::size_t, std::size_t>, std::vector<std::pair<double, double>>> obs_;
+  std::map<std::pair<std::size_t, std::size_t>, std::pair<double, double>> last_;
+};
+
+/// The one-way ranges of one round: pairs that round_ranges() could not range (one arrival missing)
+/// but whose clocks `clocks` predicts, each with its extra std; 0 < d <= max_range_m.
+std::vector<RangeObs> one_way_ranges(const Round& round, const std::vector<std::string>& users, double c_mps,
+                                     double max_range_m, const PairClocks& clocks);
+/// Feeds `clocks` with the two-way ranges of a round (their eps) and removes from `two_way` those whose
+/// eps is off the pair's line by more than outlier_sigma (once the pair has min_two_way rounds).
+void learn_clocks(const Round& round, const std::vector<std::string>& users, double c_mps,
+                  std::vector<RangeObs>& two_way, PairClocks& clocks);
 
 struct FormationConfig {
   double range_std_m = 0.15;         ///< 1-sigma of an ETOA range
@@ -160,7 +213,7 @@ class Formation {
   void try_localize(std::size_t k);
   std::vector<Candidate> pair_candidates(std::size_t i, std::size_t j, std::size_t base, std::size_t k) const;
   void adjust(std::size_t k);
-  double range_sigma() const { return cfg_.range_std_m; }
+  double range_sigma(const RangeObs& ro) const { return std::hypot(cfg_.range_std_m, ro.extra_std_m); }
 
   std::vector<std::string> users_;
   FormationConfig cfg_;

@@ -90,6 +90,80 @@ TEST(MontageRounds, GroupedByTimeSinceTheStartSignal) {
   EXPECT_TRUE(mt::round_ranges(book.rounds()[2], {"U0", "U1"}, 343.0, 40.0).empty());
 }
 
+// Two devices with their own clocks (local = true·(1 + skew) + offset), one radio start signal received
+// with different latencies, emissions every second at jittered times, walking apart at 1.2 m/s: the
+// round reports each device would send (tau since its start signal; dt = arrival − own emission).
+struct PairWorld {
+  double c = 343.0, skew_i = 35e-6, skew_j = -28e-6, off_i = 0.4, off_j = 1.9, lat_i = 0.0008, lat_j = 0.0003;
+  double self_i = 0.018, self_j = 0.012, t0 = 1.0;
+  double dist(double t) const { return 3.0 + 1.2 * (t - t0); }
+  double li(double t) const { return t * (1.0 + skew_i) + off_i; }
+  double lj(double t) const { return t * (1.0 + skew_j) + off_j; }
+  /// Round k: both reports; `drop_j_hears_i` leaves j's arrival of i out, `late_i_s` delays i's arrival of j.
+  mt::Round round(int k, bool drop_j_hears_i = false, double late_i_s = 0.0) const {
+    const double ei = t0 + 0.1 + k + 0.013 * std::sin(k), ej = t0 + 0.1 + k + 0.03 + 0.011 * std::cos(3.0 * k);
+    const double own_i = li(ei + self_i / c), own_j = lj(ej + self_j / c);
+    mt::RoundMessage ri{"U0", own_i - li(t0 + lat_i), self_i, {{"U1", li(ej + dist(ej) / c) + late_i_s - own_i}}};
+    mt::RoundMessage rj{"U1", own_j - lj(t0 + lat_j), self_j, {}};
+    if (!drop_j_hears_i) rj.arrivals.push_back({"U0", lj(ei + dist(ei) / c) - own_j});
+    mt::Round r;
+    r.tau_s = 0.5 * (ri.tau_own_s + rj.tau_own_s);
+    r.reports.emplace("U0", ri);
+    r.reports.emplace("U1", rj);
+    return r;
+  }
+};
+
+TEST(MontagePairClocks, OneWayRangeThroughTheClockLine) {
+  const PairWorld w;
+  const std::vector<std::string> users{"U0", "U1"};
+  mt::PairClocks clocks;
+  for (int k = 0; k < 4; ++k) {
+    const mt::Round r = w.round(k);
+    std::vector<mt::RangeObs> two = mt::round_ranges(r, users, w.c, 40.0);
+    ASSERT_EQ(two.size(), 1u);
+    mt::learn_clocks(r, users, w.c, two, clocks);
+    EXPECT_EQ(two.size(), 1u) << "a good two-way round is kept, round " << k;
+    EXPECT_TRUE(mt::one_way_ranges(r, users, w.c, 40.0, clocks).empty()) << "two-way rounds are not ranged one way";
+  }
+  EXPECT_EQ(clocks.count(0, 1), 4u);
+  // Round 5: U1 did not hear U0. ETOA cannot range it; the clock line can (the skews differ by 63 ppm:
+  // a line, not a constant, or the range would be off by c·63e-6·Δtau).
+  const mt::Round r = w.round(5, true);
+  EXPECT_TRUE(mt::round_ranges(r, users, w.c, 40.0).empty());
+  const auto one = mt::one_way_ranges(r, users, w.c, 40.0, clocks);
+  ASSERT_EQ(one.size(), 1u);
+  const double ej = w.t0 + 0.1 + 5 + 0.03 + 0.011 * std::cos(15.0);
+  EXPECT_NEAR(one[0].distance_m, w.dist(ej), 0.02);
+  EXPECT_GT(one[0].extra_std_m, 0.0);
+  EXPECT_LT(one[0].extra_std_m, 0.3);
+}
+
+TEST(MontagePairClocks, AWrongArrivalIsDroppedAndNotRangedOneWay) {
+  const PairWorld w;
+  const std::vector<std::string> users{"U0", "U1"};
+  mt::PairClocks clocks;
+  for (int k = 0; k < 3; ++k) {
+    const mt::Round r = w.round(k);
+    std::vector<mt::RangeObs> two = mt::round_ranges(r, users, w.c, 40.0);
+    mt::learn_clocks(r, users, w.c, two, clocks);
+  }
+  // U0 takes U1's code 80 ms late (montage-103 had such a run): the two-way range is 13.7 m long and
+  // its clock difference off the line: dropped, and not learnt.
+  const mt::Round bad = w.round(3, false, 0.08);
+  std::vector<mt::RangeObs> two = mt::round_ranges(bad, users, w.c, 40.0);
+  ASSERT_EQ(two.size(), 1u);
+  mt::learn_clocks(bad, users, w.c, two, clocks);
+  EXPECT_TRUE(two.empty());
+  EXPECT_EQ(clocks.count(0, 1), 3u);
+  // The same late arrival one way: 27 m off the pair's last range 1 s before, beyond walking speed.
+  EXPECT_TRUE(mt::one_way_ranges(w.round(4, true, 0.08), users, w.c, 40.0, clocks).empty());
+  EXPECT_EQ(mt::one_way_ranges(w.round(4, true), users, w.c, 40.0, clocks).size(), 1u);
+  // Without enough two-way rounds of the pair there is no line to range through.
+  mt::PairClocks fresh;
+  EXPECT_TRUE(mt::one_way_ranges(w.round(4, true), users, w.c, 40.0, fresh).empty());
+}
+
 TEST(MontageMovement, WalkingDirectionFromTheHorizontalAcceleration) {
   // Forward surge in phase with the rising edge of the vertical bounce, a lateral sway at half the
   // step rate, walking towards 120° while the phone points to 30°: offset +90°.
