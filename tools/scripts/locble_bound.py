@@ -47,16 +47,13 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import locble_campaign as LC  # noqa: E402  (its scene reading and scoring)
 
 
 def load_scene(scene):
     with open(os.path.join(scene, 'scene.yaml')) as f:
         y = yaml.safe_load(f)
-    address_tag = {}
-    for e in y.get('emitters', []) or []:
-        for m in e.get('emits', []) or []:
-            if m.get('type') == 'ble':
-                address_tag[m['address'].upper()] = e['id']
+    address_tag = {address: tag for tag, address in LC.tag_addresses(scene).items()}
     observer = next(d for d in y['devices'] if d.get('ble'))
     clock = (y.get('truth', {}).get('clocks', {}) or {}).get(observer['id'], {}) or {}
     offset, skew = float(clock.get('offset_s', 0.0)), float(clock.get('skew_ppm', 0.0)) * 1e-6
@@ -166,7 +163,6 @@ def rms_bound(position_info, a):
 def final_errors(locus, config, scene):
     """Final error per tag id from a replay through config (locble_campaign's scoring)."""
     import tempfile
-    import locble_campaign as LC
     with tempfile.TemporaryDirectory() as work:
         return {r['target']: r['final_error_m'] for r in LC.score(locus, scene, config, work)}
 
