@@ -392,7 +392,8 @@ class MontageLocalizer final : public Localizer {
       for (const RangeObs& ro : ranges)
         log_->debug("montage range tau " + std::to_string(r.tau_s) + " " + users_[ro.i] + "-" + users_[ro.j] + " " + std::to_string(ro.distance_m));
       if (pair_clocks_ && one_way_) {
-        const std::vector<RangeObs> one_way = one_way_ranges(r, users_, c_, max_range_, clocks_);
+        std::vector<RangeObs> one_way = one_way_ranges(r, users_, c_, max_range_, clocks_);
+        std::erase_if(one_way, [&](const RangeObs& ro) { return !formation_->is_localized(ro.i) || !formation_->is_localized(ro.j); });
         one_way_ranges_ += one_way.size();
         for (const RangeObs& ro : one_way) {
           clocks_.accept(ro.i, ro.j, r.tau_s, ro.distance_m);

@@ -184,6 +184,8 @@ class Formation {
   double stride_scale(std::size_t u) const { return scale_.at(u); }
   double heading_offset_rad(std::size_t u) const { return delta_.at(u); }
   std::size_t dropped_ranges() const noexcept { return dropped_; }
+  /// Whether user u has been placed in the formation (by any solve so far).
+  bool is_localized(std::size_t u) const { return localized_.at(u) != 0; }
 
   /// Raw (unscaled, offset 0) displacement of user u from tau a to tau b, and the steps between.
   Eigen::Vector2d raw_move(std::size_t u, double a_s, double b_s, double* steps = nullptr) const;
