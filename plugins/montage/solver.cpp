@@ -63,14 +63,20 @@ std::size_t RoundBook::add(const RoundMessage& m) {
   return best;
 }
 
+namespace {
+
+/// The arrival of `other`'s code in m (dt since m's own emission), if m heard it.
+std::optional<double> dt_of(const RoundMessage& m, const std::string& other) {
+  for (const auto& [u, dt] : m.arrivals)
+    if (u == other) return dt;
+  return std::nullopt;
+}
+
+}  // namespace
+
 std::vector<RangeObs> round_ranges(const Round& round, const std::vector<std::string>& users, double c_mps,
                                    double max_range_m) {
   std::vector<RangeObs> out;
-  auto dt_of = [](const RoundMessage& m, const std::string& other) -> std::optional<double> {
-    for (const auto& [u, dt] : m.arrivals)
-      if (u == other) return dt;
-    return std::nullopt;
-  };
   for (std::size_t i = 0; i < users.size(); ++i)
     for (std::size_t j = i + 1; j < users.size(); ++j) {
       const auto a = round.reports.find(users[i]), b = round.reports.find(users[j]);
@@ -85,12 +91,6 @@ std::vector<RangeObs> round_ranges(const Round& round, const std::vector<std::st
 }
 
 namespace {
-
-std::optional<double> dt_of(const RoundMessage& m, const std::string& other) {
-  for (const auto& [u, dt] : m.arrivals)
-    if (u == other) return dt;
-  return std::nullopt;
-}
 
 /// rho_i(j) (solver.hpp, PairClocks): i's one-way view of the distance to j, before the clock term.
 double one_way_rho(const RoundMessage& mi, const RoundMessage& mj, double dt_i, double c_mps) {
@@ -108,12 +108,39 @@ std::optional<std::pair<double, double>> PairClocks::predict(std::size_t i, std:
   const auto it = obs_.find({std::min(i, j), std::max(i, j)});
   if (it == obs_.end() || it->second.empty()) return std::nullopt;
   const auto& o = it->second;
-  // Bayesian line eps = a + b·(tau − t0) (t0: the mean tau, so a and b decouple); a second pass drops
-  // the observations far off the first line (a wrong detection makes a wrong two-way round).
-  double t0 = 0.0;
-  for (const auto& [t, e] : o) t0 += t;
-  t0 /= static_cast<double>(o.size());
+  // Which rounds to trust: a wrong detection makes a two-way round whose eps is off by half its error
+  // (tens of ms), so with 3 or more rounds the line through the pair of rounds that most others agree
+  // with (within outlier_sigma · obs_std_s; slopes within 4 sd of the skew prior only) decides; a
+  // wrong round among the first ones is outvoted instead of bending the line.
   std::vector<char> use(o.size(), 1);
+  if (o.size() >= 3) {
+    const double tol = opt_.outlier_sigma * opt_.obs_std_s;
+    std::size_t best = 0;
+    for (std::size_t k = 0; k < o.size(); ++k)
+      for (std::size_t l = k + 1; l < o.size(); ++l) {
+        const double dt = o[l].first - o[k].first;
+        if (std::abs(dt) < 1e-6) continue;
+        const double b = (o[l].second - o[k].second) / dt;
+        if (std::abs(b) > 4.0 * opt_.skew_prior) continue;
+        std::size_t in = 0;
+        for (const auto& [t, e] : o) in += std::abs(o[k].second + b * (t - o[k].first) - e) <= tol;
+        if (in > best) {
+          best = in;
+          for (std::size_t m = 0; m < o.size(); ++m)
+            use[m] = std::abs(o[k].second + b * (o[m].first - o[k].first) - o[m].second) <= tol;
+        }
+      }
+    if (best == 0) std::fill(use.begin(), use.end(), 1);  // no two rounds agree: all, and the prior
+  }
+  // Bayesian line eps = a + b·(tau − t0) (t0: the mean tau of the rounds used, so a and b decouple);
+  // a second pass drops what lies far off the first fit.
+  double t0 = 0.0, used = 0.0;
+  for (std::size_t k = 0; k < o.size(); ++k)
+    if (use[k]) {
+      t0 += o[k].first;
+      used += 1.0;
+    }
+  t0 /= std::max(used, 1.0);
   Eigen::Matrix2d cov;
   Eigen::Vector2d mean;
   for (int pass = 0; pass < 2; ++pass) {
@@ -134,6 +161,7 @@ std::optional<std::pair<double, double>> PairClocks::predict(std::size_t i, std:
     if (pass == 1) break;
     bool any = false;
     for (std::size_t k = 0; k < o.size(); ++k) {
+      if (!use[k]) continue;
       const Eigen::Vector2d h(1.0, o[k].first - t0);
       const double sd = std::sqrt(opt_.obs_std_s * opt_.obs_std_s + h.dot(cov * h));
       if (std::abs(o[k].second - h.dot(mean)) > opt_.outlier_sigma * sd && o.size() >= 3) {
@@ -170,11 +198,15 @@ void learn_clocks(const Round& round, const std::vector<std::string>& users, dou
     if (!dti || !dtj) continue;
     const double rho_i = one_way_rho(a->second, b->second, *dti, c_mps), rho_j = one_way_rho(b->second, a->second, *dtj, c_mps);
     const double eps = (rho_j - rho_i) / (2.0 * c_mps);
+    bool off_line = false;
     if (clocks.count(ro.i, ro.j) >= static_cast<std::size_t>(o.min_two_way)) {
       const auto line = clocks.predict(ro.i, ro.j, round.tau_s);
-      if (line && std::abs(eps - line->first) > o.outlier_sigma * std::hypot(o.obs_std_s, line->second)) continue;
+      off_line = line && std::abs(eps - line->first) > o.outlier_sigma * std::hypot(o.obs_std_s, line->second);
     }
+    // Every round's eps is kept (the line's consensus judges them all again later: an early wrong
+    // round must not make the good ones look wrong for good); the range only when it is on the line.
     clocks.add(ro.i, ro.j, round.tau_s, eps);
+    if (off_line) continue;
     clocks.accept(ro.i, ro.j, round.tau_s, ro.distance_m);
     kept.push_back(ro);
   }

@@ -110,9 +110,11 @@ class PairClocks {
   explicit PairClocks(PairClockOptions opt = {}) : opt_(opt) {}
   /// A two-way round of pair (i, j), i < j: its eps (s) at tau (s).
   void add(std::size_t i, std::size_t j, double tau_s, double eps_s);
-  /// eps at tau and its sd, from the pair's two-way rounds (nullopt before the first).
+  /// eps at tau and its sd, from the pair's two-way rounds (nullopt before the first): a Bayesian line
+  /// through the rounds that agree with each other (with 3 or more, the pair of rounds whose line most
+  /// others lie on, slope within 4 sd of the skew prior, decides which).
   std::optional<std::pair<double, double>> predict(std::size_t i, std::size_t j, double tau_s) const;
-  /// Two-way rounds of the pair so far.
+  /// Two-way rounds of the pair so far (those found off the line included).
   std::size_t count(std::size_t i, std::size_t j) const;
   /// The pair's latest accepted range (tau, d), for the one-way gate.
   void accept(std::size_t i, std::size_t j, double tau_s, double d_m) { last_[{std::min(i, j), std::max(i, j)}] = {tau_s, d_m}; }
@@ -129,8 +131,9 @@ class PairClocks {
 /// but whose clocks `clocks` predicts, each with its extra std; 0 < d <= max_range_m.
 std::vector<RangeObs> one_way_ranges(const Round& round, const std::vector<std::string>& users, double c_mps,
                                      double max_range_m, const PairClocks& clocks);
-/// Feeds `clocks` with the two-way ranges of a round (their eps) and removes from `two_way` those whose
-/// eps is off the pair's line by more than outlier_sigma (once the pair has min_two_way rounds).
+/// Feeds `clocks` with the two-way ranges of a round (their eps, all of them) and removes from `two_way`
+/// those whose eps is off the pair's line (predict(): the consensus of its earlier rounds) by more
+/// than outlier_sigma, once the pair has min_two_way rounds.
 void learn_clocks(const Round& round, const std::vector<std::string>& users, double c_mps,
                   std::vector<RangeObs>& two_way, PairClocks& clocks);
 

@@ -155,10 +155,23 @@ TEST(MontagePairClocks, AWrongArrivalIsDroppedAndNotRangedOneWay) {
   ASSERT_EQ(two.size(), 1u);
   mt::learn_clocks(bad, users, w.c, two, clocks);
   EXPECT_TRUE(two.empty());
-  EXPECT_EQ(clocks.count(0, 1), 3u);
+  EXPECT_EQ(clocks.count(0, 1), 4u);  // kept for the line's consensus, which outvotes it
   // The same late arrival one way: 27 m off the pair's last range 1 s before, beyond walking speed.
   EXPECT_TRUE(mt::one_way_ranges(w.round(4, true, 0.08), users, w.c, 40.0, clocks).empty());
   EXPECT_EQ(mt::one_way_ranges(w.round(4, true), users, w.c, 40.0, clocks).size(), 1u);
+  // A wrong round among the first two: the later rounds outvote it instead of being dropped for good.
+  mt::PairClocks early;
+  int kept = 0;
+  for (int k = 0; k < 7; ++k) {
+    const mt::Round r = w.round(k, false, k == 1 ? 0.08 : 0.0);
+    std::vector<mt::RangeObs> t = mt::round_ranges(r, users, w.c, 40.0);
+    mt::learn_clocks(r, users, w.c, t, early);
+    if (k >= 3) kept += static_cast<int>(t.size());
+  }
+  EXPECT_EQ(kept, 4) << "rounds 3-6 agree with round 0 and each other";
+  const auto line = early.predict(0, 1, w.round(7).tau_s);
+  ASSERT_TRUE(line);
+  EXPECT_LT(line->second, 1e-4);
   // Without enough two-way rounds of the pair there is no line to range through.
   mt::PairClocks fresh;
   EXPECT_TRUE(mt::one_way_ranges(w.round(4, true), users, w.c, 40.0, fresh).empty());
