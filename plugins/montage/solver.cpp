@@ -101,7 +101,9 @@ double one_way_rho(const RoundMessage& mi, const RoundMessage& mj, double dt_i, 
 
 void PairClocks::add(std::size_t i, std::size_t j, double tau_s, double eps_s) {
   if (!std::isfinite(tau_s) || !std::isfinite(eps_s)) return;
-  obs_[{std::min(i, j), std::max(i, j)}].emplace_back(tau_s, i < j ? eps_s : -eps_s);
+  auto& o = obs_[{std::min(i, j), std::max(i, j)}];
+  o.emplace_back(tau_s, i < j ? eps_s : -eps_s);
+  if (o.size() > std::max<std::size_t>(opt_.max_rounds, 2)) o.erase(o.begin());
 }
 
 std::optional<std::pair<double, double>> PairClocks::predict(std::size_t i, std::size_t j, double tau_s) const {

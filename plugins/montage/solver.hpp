@@ -104,6 +104,7 @@ struct PairClockOptions {
   int min_two_way = 2;           ///< two-way rounds of the pair before one-way ranges are made
   double max_speed_mps = 3.0;    ///< how fast a pair's distance can change (two walkers)
   double max_gap_s = 2.0;        ///< a one-way range needs an accepted range of the pair this recent
+  std::size_t max_rounds = 30;   ///< the line is fitted to the pair's latest rounds only (cost O(n³); clocks drift)
 };
 class PairClocks {
  public:
@@ -114,7 +115,7 @@ class PairClocks {
   /// through the rounds that agree with each other (with 3 or more, the pair of rounds whose line most
   /// others lie on, slope within 4 sd of the skew prior, decides which).
   std::optional<std::pair<double, double>> predict(std::size_t i, std::size_t j, double tau_s) const;
-  /// Two-way rounds of the pair so far (those found off the line included).
+  /// Two-way rounds of the pair held (the latest max_rounds, those found off the line included).
   std::size_t count(std::size_t i, std::size_t j) const;
   /// The pair's latest accepted range (tau, d), for the one-way gate.
   void accept(std::size_t i, std::size_t j, double tau_s, double d_m) { last_[{std::min(i, j), std::max(i, j)}] = {tau_s, d_m}; }

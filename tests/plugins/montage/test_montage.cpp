@@ -172,6 +172,11 @@ TEST(MontagePairClocks, AWrongArrivalIsDroppedAndNotRangedOneWay) {
   const auto line = early.predict(0, 1, w.round(7).tau_s);
   ASSERT_TRUE(line);
   EXPECT_LT(line->second, 1e-4);
+  // A long session keeps only the latest rounds (the line's cost grows with their cube).
+  mt::PairClocks bounded(mt::PairClockOptions{.max_rounds = 5});
+  for (int k = 0; k < 12; ++k) bounded.add(0, 1, k, 1e-3 + 2e-5 * k);
+  EXPECT_EQ(bounded.count(0, 1), 5u);
+  EXPECT_NEAR(bounded.predict(0, 1, 12.0)->first, 1e-3 + 2e-5 * 12, 1e-5);
   // Without enough two-way rounds of the pair there is no line to range through.
   mt::PairClocks fresh;
   EXPECT_TRUE(mt::one_way_ranges(w.round(4, true), users, w.c, 40.0, fresh).empty());
