@@ -159,7 +159,10 @@ def main():
     os.makedirs(a.work, exist_ok=True)
     scenes = list(a.scene)
     for seed in parse_seeds(a.seeds):
-        d = os.path.join(a.work, f'seed{seed}')
+        # The scene folder names its options: a scene simulated with other options is never reused
+        # (it was: `--options heights=table` replayed the tripods' scenes of an earlier run).
+        slug = ''.join(ch if ch.isalnum() or ch in '=.' else '_' for ch in a.options) or 'default'
+        d = os.path.join(a.work, f'seed{seed}-{a.difficulty}-{slug}')
         cmd = [a.locus, 'simulate', 'tum', d, '--seed', str(seed), '--difficulty', a.difficulty, '-q']
         for o in filter(None, a.options.split(',')):
             cmd += ['-o', o]
