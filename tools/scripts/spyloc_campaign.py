@@ -40,7 +40,11 @@ def main():
     rows = []
     pooled = []
     for seed in seeds_of(a.seeds):
-        sc = os.path.join(work, f's{seed}')
+        # A kept scene is reused only for the same difficulty and simulator options (the folder names
+        # them when they are not the defaults; `s<seed>` otherwise, as docs/spyloc.md's commands use).
+        extra = ([a.difficulty] if a.difficulty != 'normal' else []) + a.sim_opt
+        slug = ''.join(ch if ch.isalnum() or ch in '=.' else '_' for ch in '_'.join(extra))
+        sc = os.path.join(work, f's{seed}' + (f'-{slug}' if slug else ''))
         cmd = [a.locus, 'simulate', 'spyloc', sc, '--seed', str(seed), '--difficulty', a.difficulty, '-q']
         for o in a.sim_opt:
             cmd += ['-o', o]
