@@ -72,21 +72,30 @@ std::optional<double> dt_of(const RoundMessage& m, const std::string& other) {
   return std::nullopt;
 }
 
+/// Calls fn(i, j, report_i, report_j, dt_i(j), dt_j(i)) for every pair i < j of users that both
+/// reported in the round (either arrival may be missing).
+template <typename Fn>
+void for_each_reported_pair(const Round& round, const std::vector<std::string>& users, Fn&& fn) {
+  for (std::size_t i = 0; i < users.size(); ++i)
+    for (std::size_t j = i + 1; j < users.size(); ++j) {
+      const auto a = round.reports.find(users[i]), b = round.reports.find(users[j]);
+      if (a == round.reports.end() || b == round.reports.end()) continue;
+      fn(i, j, a->second, b->second, dt_of(a->second, users[j]), dt_of(b->second, users[i]));
+    }
+}
+
 }  // namespace
 
 std::vector<RangeObs> round_ranges(const Round& round, const std::vector<std::string>& users, double c_mps,
                                    double max_range_m) {
   std::vector<RangeObs> out;
-  for (std::size_t i = 0; i < users.size(); ++i)
-    for (std::size_t j = i + 1; j < users.size(); ++j) {
-      const auto a = round.reports.find(users[i]), b = round.reports.find(users[j]);
-      if (a == round.reports.end() || b == round.reports.end()) continue;
-      const auto dti = dt_of(a->second, users[j]), dtj = dt_of(b->second, users[i]);
-      if (!dti || !dtj) continue;
-      const double d = etoa_distance_m(*dti, *dtj, a->second.self_m, b->second.self_m, c_mps);
-      if (!(d > 0.0) || d > max_range_m) continue;
-      out.push_back(RangeObs{i, j, d});
-    }
+  for_each_reported_pair(round, users, [&](std::size_t i, std::size_t j, const RoundMessage& mi, const RoundMessage& mj,
+                                           std::optional<double> dti, std::optional<double> dtj) {
+    if (!dti || !dtj) return;
+    const double d = etoa_distance_m(*dti, *dtj, mi.self_m, mj.self_m, c_mps);
+    if (!(d > 0.0) || d > max_range_m) return;
+    out.push_back(RangeObs{i, j, d});
+  });
   return out;
 }
 
@@ -218,25 +227,22 @@ void learn_clocks(const Round& round, const std::vector<std::string>& users, dou
 std::vector<RangeObs> one_way_ranges(const Round& round, const std::vector<std::string>& users, double c_mps,
                                      double max_range_m, const PairClocks& clocks) {
   std::vector<RangeObs> out;
-  for (std::size_t i = 0; i < users.size(); ++i)
-    for (std::size_t j = i + 1; j < users.size(); ++j) {
-      const auto a = round.reports.find(users[i]), b = round.reports.find(users[j]);
-      if (a == round.reports.end() || b == round.reports.end()) continue;
-      const auto dti = dt_of(a->second, users[j]), dtj = dt_of(b->second, users[i]);
-      if (dti.has_value() == dtj.has_value()) continue;  // two-way (round_ranges) or nothing
-      if (clocks.count(i, j) < static_cast<std::size_t>(clocks.options().min_two_way)) continue;
-      const auto eps = clocks.predict(i, j, round.tau_s);
-      const auto last = clocks.last(i, j);
-      if (!eps || !last || round.tau_s - last->first > clocks.options().max_gap_s) continue;
-      const double extra = c_mps * eps->second;
-      if (extra > clocks.options().max_extra_std_m) continue;
-      // eps is eps_ij: rho_i(j) = d − c·eps, rho_j(i) = d + c·eps.
-      const double d = dti ? one_way_rho(a->second, b->second, *dti, c_mps) + c_mps * eps->first
-                           : one_way_rho(b->second, a->second, *dtj, c_mps) - c_mps * eps->first;
-      if (!(d > 0.0) || d > max_range_m) continue;
-      if (std::abs(d - last->second) > clocks.options().max_speed_mps * (round.tau_s - last->first) + 3.0 * extra + 0.3) continue;
-      out.push_back(RangeObs{i, j, d, extra});
-    }
+  const PairClockOptions& o = clocks.options();
+  for_each_reported_pair(round, users, [&](std::size_t i, std::size_t j, const RoundMessage& mi, const RoundMessage& mj,
+                                           std::optional<double> dti, std::optional<double> dtj) {
+    if (dti.has_value() == dtj.has_value()) return;  // two-way (round_ranges) or nothing
+    if (clocks.count(i, j) < static_cast<std::size_t>(o.min_two_way)) return;
+    const auto eps = clocks.predict(i, j, round.tau_s);
+    const auto last = clocks.last(i, j);
+    if (!eps || !last || round.tau_s - last->first > o.max_gap_s) return;
+    const double extra = c_mps * eps->second;
+    if (extra > o.max_extra_std_m) return;
+    // eps is eps_ij: rho_i(j) = d − c·eps, rho_j(i) = d + c·eps.
+    const double d = dti ? one_way_rho(mi, mj, *dti, c_mps) + c_mps * eps->first : one_way_rho(mj, mi, *dtj, c_mps) - c_mps * eps->first;
+    if (!(d > 0.0) || d > max_range_m) return;
+    if (std::abs(d - last->second) > o.max_speed_mps * (round.tau_s - last->first) + 3.0 * extra + 0.3) return;
+    out.push_back(RangeObs{i, j, d, extra});
+  });
   return out;
 }
 
