@@ -1,7 +1,9 @@
 // Montage reporter cost per ranging round (docs/montage.md, "Speed"): four users walking (2 steps per
 // 1 s round), every pair reported both ways; per iteration: the round's ETOA distances from its four
 // reports, and the formation update of that round (difference vectors / localization while users are
-// not all placed, then the robust adjustment over the window of `window_rounds` rounds). Issue 15 asks
+// not all placed, then the robust adjustment over the window of `window_rounds` rounds), with the pair
+// clock lines the reporter keeps by default (`pair_clocks`: each pair's line from its latest 30 rounds
+// checks the round's two-way ranges; learn_clocks). Issue 15 asks
 // < 50 ms of CPU per round for 4 users, with detection on every device (the goldcode benchmark).
 #include <benchmark/benchmark.h>
 
@@ -28,6 +30,7 @@ void BM_MontageRound4Users(benchmark::State& state) {
     state.PauseTiming();
     mt::FormationConfig cfg;
     mt::Formation f(users, cfg);
+    mt::PairClocks clocks;
     std::array<Eigen::Vector2d, 4> p{Eigen::Vector2d(0, 0), {4, 1}, {1, 6}, {-3, 3}};
     std::array<double, 4> h{0.3, 2.0, -1.0, 4.0};
     std::vector<mt::Round> rounds;
@@ -49,11 +52,14 @@ void BM_MontageRound4Users(benchmark::State& state) {
         }
     }
     for (std::size_t k = 0; k < warm; ++k) {
-      f.add_round(rounds[k].tau_s, mt::round_ranges(rounds[k], users, c, 40.0));
+      std::vector<mt::RangeObs> ranges = mt::round_ranges(rounds[k], users, c, 40.0);
+      mt::learn_clocks(rounds[k], users, c, ranges, clocks);
+      f.add_round(rounds[k].tau_s, std::move(ranges));
       f.solve(k);
     }
     state.ResumeTiming();
     std::vector<mt::RangeObs> ranges = mt::round_ranges(rounds[warm], users, c, 40.0);
+    mt::learn_clocks(rounds[warm], users, c, ranges, clocks);
     const std::size_t k = f.add_round(rounds[warm].tau_s, std::move(ranges));
     benchmark::DoNotOptimize(f.solve(k));
   }

@@ -114,6 +114,20 @@ struct PairWorld {
   }
 };
 
+/// Rounds k0..k1−1 of w through round_ranges and learn_clocks; returns how many two-way ranges were
+/// kept from round `count_from` on. `late_round` (if >= 0) has U0's arrival 80 ms late.
+int learn_rounds(const PairWorld& w, mt::PairClocks& clocks, int k0, int k1, int late_round = -1, int count_from = 0) {
+  const std::vector<std::string> users{"U0", "U1"};
+  int kept = 0;
+  for (int k = k0; k < k1; ++k) {
+    const mt::Round r = w.round(k, false, k == late_round ? 0.08 : 0.0);
+    std::vector<mt::RangeObs> two = mt::round_ranges(r, users, w.c, 40.0);
+    mt::learn_clocks(r, users, w.c, two, clocks);
+    if (k >= count_from) kept += static_cast<int>(two.size());
+  }
+  return kept;
+}
+
 TEST(MontagePairClocks, OneWayRangeThroughTheClockLine) {
   const PairWorld w;
   const std::vector<std::string> users{"U0", "U1"};
@@ -143,11 +157,7 @@ TEST(MontagePairClocks, AWrongArrivalIsDroppedAndNotRangedOneWay) {
   const PairWorld w;
   const std::vector<std::string> users{"U0", "U1"};
   mt::PairClocks clocks;
-  for (int k = 0; k < 3; ++k) {
-    const mt::Round r = w.round(k);
-    std::vector<mt::RangeObs> two = mt::round_ranges(r, users, w.c, 40.0);
-    mt::learn_clocks(r, users, w.c, two, clocks);
-  }
+  EXPECT_EQ(learn_rounds(w, clocks, 0, 3), 3);
   // U0 takes U1's code 80 ms late (montage-103 had such a run): the two-way range is 13.7 m long and
   // its clock difference off the line: dropped, and not learnt.
   const mt::Round bad = w.round(3, false, 0.08);
@@ -161,14 +171,7 @@ TEST(MontagePairClocks, AWrongArrivalIsDroppedAndNotRangedOneWay) {
   EXPECT_EQ(mt::one_way_ranges(w.round(4, true), users, w.c, 40.0, clocks).size(), 1u);
   // A wrong round among the first two: the later rounds outvote it instead of being dropped for good.
   mt::PairClocks early;
-  int kept = 0;
-  for (int k = 0; k < 7; ++k) {
-    const mt::Round r = w.round(k, false, k == 1 ? 0.08 : 0.0);
-    std::vector<mt::RangeObs> t = mt::round_ranges(r, users, w.c, 40.0);
-    mt::learn_clocks(r, users, w.c, t, early);
-    if (k >= 3) kept += static_cast<int>(t.size());
-  }
-  EXPECT_EQ(kept, 4) << "rounds 3-6 agree with round 0 and each other";
+  EXPECT_EQ(learn_rounds(w, early, 0, 7, 1, 3), 4) << "rounds 3-6 agree with round 0 and each other";
   const auto line = early.predict(0, 1, w.round(7).tau_s);
   ASSERT_TRUE(line);
   EXPECT_LT(line->second, 1e-4);
