@@ -259,6 +259,20 @@ def main():
         'rms_within1_samples': float(np.sqrt(np.mean(np.square(within)))),
         'max_abs_error_samples': float(np.max(np.abs(e))),
     }
+    # Per path (device, mic, emitter): the part of the error that repeats at every exchange (the mean
+    # of the path's errors within 1 sample, about the scene-wide median) and the part that does not
+    # (the scatter about that mean). A still geometry repeats its reflections: only the second part
+    # averages out over exchanges (tools/scripts/tum_bound.py, --bias-std-samples).
+    within_all = [x for rows in table.values() for _s, _e, x, _d in rows if x is not None and abs(x) <= 1.0]
+    centre = float(np.median(within_all)) if within_all else 0.0
+    means, scatter = [], []
+    for rows in table.values():
+        xs = np.array([x for _s, _e, x, _d in rows if x is not None and abs(x) <= 1.0])
+        if len(xs) >= 3:
+            means.append(xs.mean() - centre)
+            scatter.extend(xs - xs.mean())
+    res['path_bias_rms_samples'] = float(np.sqrt(np.mean(np.square(means)))) if means else 0.0
+    res['path_scatter_std_samples'] = float(np.std(scatter)) if scatter else 0.0
     if a.json:
         print(json.dumps(res))
     else:
@@ -274,6 +288,8 @@ def main():
                   f"{100.0 * s['within1'] / s['arrivals']:.2f} %")
         print(f"rms error of the arrivals within 1 sample: {res['rms_within1_samples']:.3f} samples; "
               f"largest error of a paired detection: {res['max_abs_error_samples']:.1f} samples")
+        print(f"per path (device, mic, emitter): bias rms {res['path_bias_rms_samples']:.3f} samples (repeats every "
+              f"exchange), scatter {res['path_scatter_std_samples']:.3f} samples (does not)")
     if a.list_bad:
         for em, src, dev, mic, samp, k, err in bad:
             es = 'none' if err is None else f'{err:+.2f}'
