@@ -1,5 +1,6 @@
 """Shared by the campaign and measuring scripts (tools/scripts/*_campaign.py, map_measure.py) and the
-map's browser test: seed lists, running a locus command, percentiles, stopping a process group.
+map's browser test: seed lists, running a locus command, percentiles, stopping a process group, a
+quaternion's rotation matrix.
 Import with the scripts' folder on sys.path (scripts run as files here have it)."""
 import math
 import os
@@ -53,3 +54,11 @@ def kill_group(proc):
         except ProcessLookupError:
             pass
         proc.wait()
+
+
+def quat_matrix(q):
+    """Rotation matrix (nested lists) of a unit quaternion (w, x, y, z): body vectors into the reference frame."""
+    w, x, y, z = q
+    return [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]

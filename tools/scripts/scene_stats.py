@@ -32,6 +32,8 @@ import yaml
 from scipy.io import wavfile
 from scipy.signal import butter, sosfiltfilt, welch, hilbert
 
+from campaign_common import quat_matrix
+
 
 def load_truth(scene):
     tr = {}
@@ -41,10 +43,7 @@ def load_truth(scene):
 
 
 def quat_R(q):
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return np.array(quat_matrix(q))
 
 
 def yaw_of(q):

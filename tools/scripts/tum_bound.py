@@ -56,12 +56,8 @@ import sys
 import numpy as np
 import yaml
 
-
-def quat_matrix(q):
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from campaign_common import quat_matrix  # noqa: E402
 
 
 def rot_z(a):
@@ -102,7 +98,7 @@ class Scene:
             spread = max(float(np.linalg.norm(p - rs[0][0])) for p, _ in rs)
             if spread > 0.01:
                 raise SystemExit(f"tum_bound: {path}: device {d['id']} moves ({spread:.2f} m): only static scenes are bounded")
-            self.pose[d['id']] = (rs[0][0], quat_matrix(rs[0][1]))
+            self.pose[d['id']] = (rs[0][0], np.array(quat_matrix(rs[0][1])))
         self.exchanges = self._exchanges(y)
 
     def _exchanges(self, y):

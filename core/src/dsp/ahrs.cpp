@@ -3,6 +3,9 @@
 // gravity and the magnetic terms.
 #include "locus/dsp/ahrs.hpp"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 
 namespace locus::dsp {
@@ -118,6 +121,53 @@ void Mahony::update(const Vector3d& gyro, const Vector3d& accel, const Vector3d&
   Vector3d err = accel.normalized().cross(q_.conjugate() * Vector3d::UnitZ());
   err += m.cross(q_.conjugate() * b);
   step(gyro, err, dt_s);
+}
+
+void HardIronCalibrator::reset() noexcept {
+  a_.setZero();
+  b_.setZero();
+  h_.setZero();
+  theta_.setZero();
+  wxm_.setZero();
+  t_interval_ = 0.0;
+  started_ = false;
+  max_std_ = cfg_.prior_ut;
+  turns_ = 0;
+}
+
+void HardIronCalibrator::update(const Eigen::Vector3d& gyro, const Eigen::Vector3d& mag, double dt_s) noexcept {
+  if (!gyro.allFinite() || !mag.allFinite()) return;
+  if (!started_ || !(dt_s >= 0.0)) {
+    started_ = true;
+    m0_ = mag;
+    theta_.setZero();
+    wxm_.setZero();
+    t_interval_ = 0.0;
+    return;
+  }
+  theta_ += gyro * dt_s;
+  wxm_ += gyro.cross(mag) * dt_s;
+  t_interval_ += dt_s;
+  if (t_interval_ < cfg_.interval_s) return;
+  if (theta_.norm() >= cfg_.min_turn_rad) {
+    Eigen::Matrix3d skew;
+    skew << 0, -theta_.z(), theta_.y(), theta_.z(), 0, -theta_.x(), -theta_.y(), theta_.x(), 0;
+    const Eigen::Vector3d z = (mag - m0_) + wxm_;
+    const double forget = std::exp(-t_interval_ / cfg_.tau_s);
+    const double w = 1.0 / (2.0 * cfg_.noise_ut * cfg_.noise_ut);
+    a_ = forget * a_ + w * skew.transpose() * skew;
+    b_ = forget * b_ + w * skew.transpose() * z;
+    const Eigen::Matrix3d post = a_ + Eigen::Matrix3d::Identity() / (cfg_.prior_ut * cfg_.prior_ut);
+    const Eigen::LDLT<Eigen::Matrix3d> ldlt(post);
+    h_ = ldlt.solve(b_);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(post, Eigen::EigenvaluesOnly);
+    max_std_ = 1.0 / std::sqrt(std::max(eig.eigenvalues()[0], 1e-300));
+    ++turns_;
+  }
+  m0_ = mag;
+  theta_.setZero();
+  wxm_.setZero();
+  t_interval_ = 0.0;
 }
 
 }  // namespace locus::dsp

@@ -25,13 +25,10 @@ foreign = sys.argv[3] if len(sys.argv) > 3 else ''
 sys.path.insert(0, os.path.join(source, 'tools', 'scripts'))
 import locble_bound as LB  # noqa: E402
 
-failures = []
+sys.path.insert(0, os.path.join(source, 'tests', 'scenario'))
+from scenario_checks import Checks  # noqa: E402
 
-
-def check(ok, what):
-    print(('ok   ' if ok else 'FAIL ') + what)
-    if not ok:
-        failures.append(what)
+check = Checks()
 
 
 # An L walk: 3.5 m along +x, then 3.5 m along +y; readings every 0.05 s over 14 s.
@@ -116,4 +113,4 @@ if foreign and os.path.isdir(lb105):
 else:
     print('skip locble-105 (no foreign scenes)')
 
-sys.exit(1 if failures else 0)
+check.finish()

@@ -32,13 +32,10 @@ sys.path.insert(0, os.path.join(source, 'tools', 'scripts'))
 import check_tum_arrivals as CA  # noqa: E402
 import tum_bound as TB  # noqa: E402
 
-failures = []
+sys.path.insert(0, os.path.join(source, 'tests', 'scenario'))
+from scenario_checks import Checks  # noqa: E402
 
-
-def check(ok, what):
-    print(('ok   ' if ok else 'FAIL ') + what)
-    if not ok:
-        failures.append(what)
+check = Checks()
 
 
 def args(**kw):
@@ -159,7 +156,4 @@ with tempfile.TemporaryDirectory(prefix='locus-tum-bound.') as tmp:
           f"table seed 19 (6 s): the ideal estimator picks a wrong root in {mid['wrong_root_fraction'] * 100:.0f} % of draws, "
           f"p90 {mid['eq23_p90_m'] * 100:.1f} cm (docs/tum.md: above the 12 cm bar)")
 
-if failures:
-    print(f'{len(failures)} check(s) failed', file=sys.stderr)
-    sys.exit(1)
-print('all checks passed')
+check.finish()

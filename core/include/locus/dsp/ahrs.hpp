@@ -12,6 +12,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <cstdint>
 
 namespace locus::dsp {
 
@@ -108,6 +109,55 @@ class Ahrs {
   Kind kind_ = Kind::Mahony;
   Madgwick madgwick_;
   Mahony mahony_;
+};
+
+/// Hard iron of a magnetometer, learnt from the device's own turning (the magnetometer's constant
+/// offset h in the body frame: a phone's or board's magnets and iron; 1-5 uT against a horizontal
+/// field of ~20 uT, i.e. up to ~15 deg of heading). A turning device sees the field rotate about h:
+/// with m = R^T F + h and dR/dt = R [w]x, dm/dt = -w x (m - h), so over an interval
+///   (m(t1) - m(t0)) + integral(w x m dt) = theta x h,   theta = integral(w dt)   (exact, h constant)
+/// which is linear in h with the gyro's rotation as regressor: a still device gives no equation at
+/// all (no bias towards its one reading, as a sphere fit to a noise blob would). Intervals of
+/// `interval_s` whose rotation exceeds `min_turn_rad` (many times the gyro bias's drift) add
+///   A += [theta]x^T [theta]x / s^2,  b += [theta]x^T z / s^2   (s^2 = 2 noise_ut^2: two readings)
+/// with exponential forgetting (time constant tau_s: a magnet moving in the case is relearnt); the
+/// estimate is the posterior mean with the prior h ~ N(0, prior_ut^2 I): along the axis the device
+/// never turned about, or before it turns at all, it stays at 0. Plain value type: no allocation [RT].
+class HardIronCalibrator {
+ public:
+  struct Config {
+    double interval_s = 0.5;     ///< integration interval of one equation
+    double min_turn_rad = 0.15;  ///< an interval turning less adds nothing
+    double tau_s = 120.0;        ///< forgetting time constant
+    double prior_ut = 5.0;       ///< 1-sigma of each hard-iron component before any turn
+    double noise_ut = 0.5;       ///< magnetometer noise (1 sigma per reading and axis)
+  };
+  HardIronCalibrator() noexcept { reset(); }
+  explicit HardIronCalibrator(const Config& c) noexcept : cfg_(c) { reset(); }
+  void configure(const Config& c) noexcept {
+    cfg_ = c;
+    reset();
+  }
+  void reset() noexcept;
+  /// [RT] one sample: gyro rad/s and field (the unit of prior_ut / noise_ut), dt_s since the last.
+  void update(const Eigen::Vector3d& gyro, const Eigen::Vector3d& mag, double dt_s) noexcept;
+  /// [RT] posterior mean of the hard iron (body frame); zero until the device turned.
+  const Eigen::Vector3d& hard_iron() const noexcept { return h_; }
+  /// [RT] posterior 1-sigma of the least known direction of h.
+  double max_std() const noexcept { return max_std_; }
+  /// Intervals that turned enough to count (since reset).
+  std::uint64_t turns() const noexcept { return turns_; }
+
+ private:
+  Config cfg_;
+  Eigen::Matrix3d a_ = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d b_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d h_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d m0_ = Eigen::Vector3d::Zero(), theta_ = Eigen::Vector3d::Zero(), wxm_ = Eigen::Vector3d::Zero();
+  double t_interval_ = 0.0;
+  bool started_ = false;
+  double max_std_ = 0.0;
+  std::uint64_t turns_ = 0;
 };
 
 }  // namespace locus::dsp
