@@ -166,18 +166,23 @@ class TumLocalizer final : public Localizer {
       const int tone = d->template_index == template1_ ? 1 : d->template_index == template2_ ? 2 : 0;
       if (tone == 0 || d->channel >= mics_.size()) return;
       const double t = d->frame / d->sample_rate_hz;
-      close_exchanges(t);
+      audio_t_ = std::max(audio_t_, t);
+      close_exchanges(horizon());
       pending_.push_back(Detection{t, tone, d->channel, d->snr_db});
     } else if (const auto* a = std::get_if<Attitude>(&event)) {
       if (a->device.view() != device_) return;
       attitudes_.push_back({a->t_s, {a->q_wxyz[0], a->q_wxyz[1], a->q_wxyz[2], a->q_wxyz[3]}});
       while (attitudes_.size() > 256) attitudes_.pop_front();
+      attitude_t_ = std::max(attitude_t_, a->t_s);
+      close_exchanges(horizon());
     } else if (const auto* s = std::get_if<ImuSample>(&event)) {
       if (s->device.view() != device_) return;
       const double g = std::sqrt(double(s->gyro_radps[0]) * s->gyro_radps[0] + double(s->gyro_radps[1]) * s->gyro_radps[1] +
                                  double(s->gyro_radps[2]) * s->gyro_radps[2]);
       motion_.push_back({s->t_s, g > motion_gyro_radps_});
       while (motion_.size() > 4096) motion_.pop_front();
+      imu_t_ = std::max(imu_t_, s->t_s);
+      close_exchanges(horizon());
     }
     if (live_) live_tick();
     if (reporter_) process(out, false);
@@ -215,6 +220,17 @@ class TumLocalizer final : public Localizer {
     double t_s;
     bool moving;
   };
+
+  /// The local time up to which every input stream of this device has been seen: detections, attitude
+  /// events and IMU samples arrive interleaved in an order that varies from run to run, and an
+  /// exchange takes the attitude and the motion flag around its time, so it closes only once each
+  /// stream that has spoken has passed it (a stream never seen does not hold it back).
+  double horizon() const {
+    double h = audio_t_;
+    if (attitude_t_ > -kInf) h = std::min(h, attitude_t_);
+    if (imu_t_ > -kInf) h = std::min(h, imu_t_);
+    return h;
+  }
 
   /// Publishes every exchange whose window has closed by local time `now`.
   void close_exchanges(double now) {
@@ -268,7 +284,11 @@ class TumLocalizer final : public Localizer {
     DeviceExchange ex = to_exchange(*d.obs);
     r.stamps.push_back(stamp_of(ex));
     r.exchanges.push_back(std::move(ex));
-    if (std::find(order_.begin(), order_.end(), d.obs->device) == order_.end()) order_.push_back(d.obs->device);
+    // Devices in id order, not in the order their first message happened to arrive: the window solve
+    // places the monitors one after another, so an arrival order that varies from run to run (the
+    // link is asynchronous) would make a replay's result vary with it.
+    auto at = std::lower_bound(order_.begin(), order_.end(), d.obs->device);
+    if (at == order_.end() || *at != d.obs->device) order_.insert(at, d.obs->device);
   }
 
   double interval_tolerance_s() const { return 2.0 * max_spread_m_ / cfg_.speed_of_sound_mps + 0.002; }
@@ -330,7 +350,11 @@ class TumLocalizer final : public Localizer {
       for (const auto& id : order) {
         RemoteDevice& r = remote_[id];
         if (!r.offset_s) {
-          if (!final && id == device2_) wait = true;
+          // On replay a device heard from but not yet paired is waited for (the end flushes): whether
+          // its pairing is decided before this exchange is solved must not depend on how fast the
+          // asynchronous link delivered its messages, or one scene gives different results run to
+          // run. Live, only device 2 is waited for (a monitor must not stall the output).
+          if (!final && (id == device2_ || !live_)) wait = true;
           if (id == device2_) break;
           continue;
         }
@@ -685,6 +709,7 @@ class TumLocalizer final : public Localizer {
   double pairing_tolerance_s_ = 0.006;
   // every instance
   std::vector<Detection> pending_;
+  double audio_t_ = -kInf, attitude_t_ = -kInf, imu_t_ = -kInf;  ///< latest local time per input stream
   std::deque<AttitudeAt> attitudes_;
   std::deque<MotionAt> motion_;
   std::uint64_t seq_ = 0;

@@ -208,6 +208,11 @@ struct PipelineOptions {
   /// Per device id; plugins of a device listed here get HostContext::geometry. A device not listed
   /// here whose config has a `geometry:` section gets that one.
   std::map<std::string, GeometrySpec> geometry;
+  /// FFTW plans by measurement (FFTW_MEASURE: faster transforms, chosen by timing) or by estimate
+  /// (FFTW_ESTIMATE). Measured plans differ from run to run, and so do the last bits of every
+  /// transform; a localizer that picks among basins turns those bits into different results. Replay
+  /// plans by estimate: the same scene gives the same output, bit for bit (docs/replay.md).
+  bool fft_measure = true;
 };
 
 class Pipeline {

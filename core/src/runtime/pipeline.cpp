@@ -220,7 +220,7 @@ Pipeline::Pipeline(const Config& config, Registry& registry, PipelineOptions opt
     : config_(config),
       registry_(registry),
       options_(std::move(options)),
-      fft_(std::make_unique<FftwPlanner>()),
+      fft_(std::make_unique<FftwPlanner>(std::string{}, options_.fft_measure)),
       clock_(std::make_unique<SteadyClock>()) {
   pipeline_steps::LinkChoice link = pipeline_steps::choose_link(config_, registry_, options_.link);
   link_ = link.link;
