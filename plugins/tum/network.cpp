@@ -489,6 +489,17 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
     candidates.push_back(p.segment<3>(pr.x_index[pr.dev2][newest]));
   } else {
     for (std::size_t i = 0; i < single.devices[1].roots.size() && i < 4; ++i) candidates.push_back(single.devices[1].roots[i].x);
+    // A moving device 2's height is what the pair sees least (flat two-mic devices: second order);
+    // the monitors see it, but only if the formation they are fitted around starts near it. While
+    // the window fills, each root is also tried shifted by +-moving_height_candidates_m along the
+    // vertical (with the world's hard iron, 3 of 20 ellipse seeds settled in a wrong formation from
+    // a root at the wrong height: docs/tum.md "Network solve").
+    if (net_.moving_height_candidates_m > 0 && !pr.still[pr.dev2] && K < net_.window) {
+      const Eigen::Vector3d up = pr.up_k[static_cast<std::size_t>(newest)];
+      const std::size_t n0 = candidates.size();
+      for (std::size_t i = 0; i < n0; ++i)
+        for (double dz : {-net_.moving_height_candidates_m, net_.moving_height_candidates_m}) candidates.push_back(candidates[i] + dz * up);
+    }
     // A still device 2 is placed once: its mirror image through device 1's two-mic axis (the vertical
     // plane through device 1's mics; what a wrong heading of device 2 turns into the better fit of one
     // exchange) is a candidate too, so that the window can decide between the two formations.

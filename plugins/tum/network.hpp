@@ -57,6 +57,7 @@ struct NetworkConfig {
   double basin_distinct_m = 0.05;  ///< horizontal distance beyond which two solutions are distinct basins
   double basin_drop_chi2 = 30.0;   ///< a basin worse than the best by more than this (chi2) is dropped
   double unobserved_height_ratio = 0.5;  ///< posterior / prior vertical std above which height is unobserved
+  double moving_height_candidates_m = 0.3;  ///< a moving device 2's roots also tried this much higher / lower (0 = off)
 };
 
 struct NetworkPlacement {

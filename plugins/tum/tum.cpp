@@ -89,6 +89,7 @@ class TumLocalizer final : public Localizer {
     net_cfg_.window = static_cast<int>(params.get_int("window"));
     net_cfg_.yaw_prior_rad = params.get_float("yaw_prior_rad");
     net_cfg_.height_prior_m = params.get_float("height_prior_m");
+    net_cfg_.moving_height_candidates_m = params.get_float("moving_height_candidates_m");
     net_cfg_.still_yaw_prior_rad = params.get_float("still_yaw_prior_rad");
     net_cfg_.speed_mps = tracker_cfg_.moving_speed_mps;
     net_cfg_.outlier_m = tracker_cfg_.outlier_jump_m;
@@ -758,6 +759,8 @@ const ParamSchema& schema() {
                   "The same while no device moves in the window (offsets are then unobservable: the attitude's own accuracy)."),
       float_param("height_prior_m", 0.5, 0.0, 100.0, "m",
                   "1-sigma height of a device relative to device 1 (0 = none); only matters where the geometry leaves height unobservable."),
+      float_param("moving_height_candidates_m", 0.3, 0.0, 5.0, "m",
+                  "While the window fills, a moving device 2's roots are also tried this much higher and lower (0 = off): the pair sees its height least."),
       bool_param("log_fixes", false, "Log every fix and every root at debug level (log_level: debug)."),
       float_param("std_floor_m", 0.0, 0.0, 10.0, "m", "Added in quadrature to every reported std (unmodelled errors)."),
       // live roles (a node with an emitter; docs/tum.md "Live roles")
