@@ -6,7 +6,7 @@
 
 namespace locus::plugins::motion_common {
 
-void append_ahrs_params(ParamSchema& schema, double default_gain, bool default_mag_calibration) {
+void append_ahrs_params(ParamSchema& schema, double default_gain) {
   schema.push_back(enum_param("ahrs", std::string("mahony"), {"madgwick", "mahony"},
                               "Attitude filter: Madgwick gradient descent or Mahony complementary filter."));
   schema.push_back(float_param("ahrs_gain", default_gain, 0.0, 50.0, "1/s",
@@ -15,7 +15,7 @@ void append_ahrs_params(ParamSchema& schema, double default_gain, bool default_m
   schema.push_back(bool_param("use_mag", true, "Use the magnetometer when samples carry one (absolute heading)."));
   schema.push_back(float_param("max_gap_s", 0.5, 0.001, 60.0, "s",
                                "A larger gap between IMU samples restarts the attitude from gravity."));
-  schema.push_back(bool_param("mag_calibration", default_mag_calibration,
+  schema.push_back(bool_param("mag_calibration", false,
                               "Learn the magnetometer's hard iron from the device's own turns (gyro-aided, "
                               "docs/detectors.md) and remove it before the AHRS; a device that never turns keeps its readings."));
   schema.push_back(float_param("mag_calibration_tau_s", 120.0, 1.0, 1e6, "s",

@@ -15,8 +15,8 @@ namespace locus::plugins::motion_common {
 /// The AHRS parameters every IMU plugin declares: `ahrs` (madgwick|mahony), `ahrs_gain` (Madgwick
 /// beta in rad/s or Mahony kp in 1/s), `ahrs_ki` (Mahony bias gain), `use_mag`, `max_gap_s`,
 /// `mag_calibration` (learn the magnetometer's hard iron from the device's turns,
-/// dsp::HardIronCalibrator; default per plugin) and `mag_calibration_tau_s`.
-void append_ahrs_params(ParamSchema& schema, double default_gain = 0.5, bool default_mag_calibration = false);
+/// dsp::HardIronCalibrator; off unless a config turns it on) and `mag_calibration_tau_s`.
+void append_ahrs_params(ParamSchema& schema, double default_gain = 0.5);
 
 /// Tracks the attitude of one device from its IMU samples.
 class AttitudeTracker {
@@ -39,8 +39,6 @@ class AttitudeTracker {
   /// Samples ignored (non-finite values) since configure.
   std::uint64_t rejected() const noexcept { return rejected_; }
   std::uint64_t gaps() const noexcept { return gaps_; }
-  /// The hard iron subtracted from the field (zero without `mag_calibration` or before a turn).
-  const Eigen::Vector3d& hard_iron() const noexcept { return calib_.hard_iron(); }
 
  private:
   dsp::Ahrs ahrs_;

@@ -211,6 +211,18 @@ TEST(RtSafety, SensorDeliveryDoesNotAllocateOrLock) {
     names.emplace_back(d->name);
     detectors.push_back(std::move(det));
   }
+  {  // `attitude` once more with the hard-iron calibration on (off by default): its solve runs in process_imu
+    const locus_plugin_descriptor* d = registry.find_plugin("attitude");
+    ASSERT_NE(d, nullptr);
+    auto det = registry.create_detector("attitude");
+    HostContext ctx = host.context("attitude_calibrating", "A");
+    Params params = Params::defaults(*d->schema());
+    params.set("mag_calibration", true);
+    det->configure(info, params, ctx);
+    imu_dets.push_back(det.get());
+    names.emplace_back("attitude(mag_calibration)");
+    detectors.push_back(std::move(det));
+  }
   AudioRing ring(1, 1 << 16);
   RtEventQueue queue("A", 1 << 12);
   AudioBlockRunner block_runner(ring, kBlock, audio_dets, queue);
@@ -238,7 +250,11 @@ TEST(RtSafety, SensorDeliveryDoesNotAllocateOrLock) {
     imu.device = "A";
     imu.t_s = t;
     imu.accel_mps2 = {0.0f, static_cast<float>(9.81 + std::sin(6.0 * t)), 0.5f * static_cast<float>(std::cos(11.0 * t))};
-    imu.gyro_radps = {0.01f, 0.02f, static_cast<float>(0.3 * std::sin(2.0 * t))};
+    // turning at about 1 rad/s, the field with it in the body frame: every 0.5 s interval of the
+    // hard-iron calibrator counts as a turn and runs its solve
+    imu.gyro_radps = {0.01f, 0.02f, static_cast<float>(1.0 + 0.3 * std::sin(2.0 * t))};
+    imu.has_mag = true;
+    imu.mag_ut = {static_cast<float>(20.0 * std::cos(t)), static_cast<float>(-20.0 * std::sin(t)), -44.0f};
     imu_q.try_push(imu);
     if (n % 4 == 0) {
       BleAdvertisement a;

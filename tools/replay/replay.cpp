@@ -185,7 +185,7 @@ int run_replay(const ReplayOptions& opts) {
       PipelineOptions po;
       po.link = &link;
       po.write_output = false;
-      po.fft_measure = false;  // deterministic transforms: one scene, one output (docs/replay.md)
+      po.fft_measure = false;  // deterministic transforms: one scene, one output (docs/config.md "Replay")
       po.localizer_device = spec.id;
       GeometrySpec g = geometry_of(spec);
       g.scene_emits = scene_emits;

@@ -32,7 +32,6 @@ Exit status: 0, or 4 when a --min/--max bar is missed. Needs python3-numpy and p
 import argparse
 import csv
 import json
-import math
 import os
 import sys
 

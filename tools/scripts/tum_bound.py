@@ -23,7 +23,7 @@ not (--timing-std-samples); measured with tools/scripts/check_tum_arrivals.py on
 clock offset except device 1's (loose clocks; Eq. 2-4 and 17-21 use local time differences only).
 Unknown per device other than device 1 (the frame, docs/eval.md): its position and its heading with
 the prior --yaw-std-rad (our attitude detector's heading relative to device 1's over the 60 device
-headings of `-o heights=table` seeds 1-20: 11.5 deg = 0.20 rad rms with the world's hard iron that
+headings of `-o heights=table` seeds 1-20, tools/scripts/heading_errors.py: 11.5 deg = 0.20 rad rms with the world's hard iron that
 `locus simulate tum` now draws, 4.8 deg = 0.085 rad with the 1 uT it drew before; tum-102: B 14 deg,
 C 1-2, D 2-7),
 and its height with the prior --height-std-m.
@@ -362,7 +362,7 @@ def main():
     ap.add_argument('--work', default='/tmp')
     ap.add_argument('--json', action='store_true')
     args = ap.parse_args()
-    results, pooled, meas = [], [], []
+    results, pooled = [], []
     for path in args.scenes:
         r = bound(Scene(path), args)
         pooled.append(r['draws'])

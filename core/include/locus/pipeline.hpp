@@ -211,7 +211,7 @@ struct PipelineOptions {
   /// FFTW plans by measurement (FFTW_MEASURE: faster transforms, chosen by timing) or by estimate
   /// (FFTW_ESTIMATE). Measured plans differ from run to run, and so do the last bits of every
   /// transform; a localizer that picks among basins turns those bits into different results. Replay
-  /// plans by estimate: the same scene gives the same output, bit for bit (docs/replay.md).
+  /// plans by estimate: the same scene gives the same output, bit for bit (docs/config.md "Replay").
   bool fft_measure = true;
 };
 

@@ -133,7 +133,6 @@ class HardIronCalibrator {
     double noise_ut = 0.5;       ///< magnetometer noise (1 sigma per reading and axis)
   };
   HardIronCalibrator() noexcept { reset(); }
-  explicit HardIronCalibrator(const Config& c) noexcept : cfg_(c) { reset(); }
   void configure(const Config& c) noexcept {
     cfg_ = c;
     reset();
