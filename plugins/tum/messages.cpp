@@ -59,6 +59,7 @@ std::string encode(const ObsMessage& m) {
   if (m.q_wxyz) j["q_wxyz"] = json::array({(*m.q_wxyz)[0], (*m.q_wxyz)[1], (*m.q_wxyz)[2], (*m.q_wxyz)[3]});
   else j["q_wxyz"] = nullptr;
   j["moving"] = m.moving;
+  if (m.gyro_radps) j["w_radps"] = vec(*m.gyro_radps);
   j["t1"] = times(m.t1_s);
   j["t2"] = times(m.t2_s);
   return j.dump(-1, ' ', false, json::error_handler_t::replace);
@@ -124,6 +125,12 @@ Decoded decode(std::string_view prefix, std::string_view topic, std::string_view
   const auto moving = j.find("moving");
   if (moving == j.end() || !moving->is_boolean()) return d.error = "field 'moving': expected true or false", d;
   m.moving = moving->get<bool>();
+  const auto w = j.find("w_radps");
+  if (w != j.end() && !w->is_null()) {
+    Vec3a g{};
+    if (!read_vec(*w, g)) return d.error = "field 'w_radps': expected finite [x,y,z] (rad/s) or null", d;
+    m.gyro_radps = g;
+  }
   const auto t1 = j.find("t1"), t2 = j.find("t2");
   if (t1 == j.end() || !read_times(*t1, m.mics_m.size(), m.t1_s))
     return d.error = "field 't1': expected one finite time or null per mic", d;

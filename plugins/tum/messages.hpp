@@ -7,11 +7,13 @@
 // Topic (prefix = the plugin's `topic` parameter, default "tum"):
 //   <prefix>/obs/<device>  {"type":"tum_obs","device":"B","seq":4,
 //                           "mics":[[x,y,z],...],"speaker":[x,y,z] | null,
-//                           "q_wxyz":[w,x,y,z] | null, "moving":false,
+//                           "q_wxyz":[w,x,y,z] | null, "moving":false, "w_radps":[x,y,z],
 //                           "t1":[t_mic0, t_mic1, ...], "t2":[...]}
 // t1 / t2: local arrival time (s, the device's audio clock) of working device 1's / device 2's tone at
 // each microphone, null = not detected. q_wxyz: the `attitude` detector's body -> reference rotation
-// (null = no IMU). Times are never converted: relating clocks is the solver's job (docs/tum.md).
+// (null = no IMU) and w_radps the gyro's body-frame rate (optional: absent or null = no gyro), both at
+// the device's reference instant of the exchange: its hearing of device 1's tone (the mean of t1),
+// else its first arrival. Times are never converted: relating clocks is the solver's job (docs/tum.md).
 #pragma once
 
 #include <array>
@@ -32,6 +34,7 @@ struct ObsMessage {
   std::optional<Vec3a> speaker_m;               ///< body frame; absent = cannot emit
   std::optional<std::array<double, 4>> q_wxyz;  ///< attitude at the exchange; absent = unknown
   bool moving = false;                          ///< the IMU saw motion since the previous exchange
+  std::optional<Vec3a> gyro_radps;              ///< body-frame angular rate at the exchange; absent = no gyro
   std::vector<double> t1_s;                     ///< per mic; NaN = not heard
   std::vector<double> t2_s;                     ///< per mic; NaN = not heard
 };

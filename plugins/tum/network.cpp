@@ -23,6 +23,7 @@ struct Eq {
   Eigen::Vector3d point;  ///< device 1's mic (OneHearsN) or the hearing device's mic, body frame
   double y;
   double sigma;
+  double dt_rx_s = 0.0;   ///< the hearing device's arrival minus its reference instant (its hearing of M)
 };
 
 /// The problem over the window: parameter layout, equations, residuals.
@@ -49,6 +50,9 @@ struct Problem {
   std::vector<double> h_centre, h_sigma;
   mutable std::vector<Eigen::Matrix3d> rot_cache;  ///< [dev * K + k], per residuals() call
   mutable std::vector<Eigen::Vector3d> n_cache;    ///< device 2's speaker per exchange
+  mutable std::vector<Eigen::Vector3d> v_cache;    ///< [dev * K + k] velocity of a moving device (m/s)
+  std::vector<std::vector<Eigen::Vector3d>> w_body;  ///< [dev][k] gyro rate (body, rad/s); zero when still
+  std::vector<double> dt_n_s;                      ///< per exchange: N's emission minus device 2's reference
   double yaw_sigma = 0.35;         ///< prior 1-sigma (loose while something moves, tight when all is still)
 
   Eigen::Matrix3d rotation(int d, int k, const Eigen::VectorXd& p) const {
@@ -78,6 +82,71 @@ struct Problem {
     }
     return n;
   }
+  /// Motion within an exchange (NetworkConfig::exchange_motion) and the timing instants of device 1's
+  /// (M) and device 2's (N) tone (dsp::doppler_timing_instant_s). The velocities (v_cache) are held
+  /// fixed over a Levenberg-Marquardt run (solve_lm), residuals() never change them.
+  bool motion = false;
+  double instant_m_s = 0.0, instant_n_s = 0.0;
+  /// Per device and exchange: the velocity as a linear combination of the device's origins (exchange,
+  /// coefficient): the derivative at t_k of the parabola through the three exchanges nearest in time
+  /// (centred where it can be; a straight line through two; nothing for one).
+  std::vector<std::vector<std::vector<std::pair<int, double>>>> stencil;  ///< [dev][k]
+  void build_stencils() {
+    const std::size_t K = m_k.size();
+    stencil.assign(static_cast<std::size_t>(n_dev), std::vector<std::vector<std::pair<int, double>>>(K));
+    for (int d = 0; d < n_dev; ++d) {
+      if (still[d]) continue;
+      std::vector<int> ks;
+      for (std::size_t k = 0; k < K; ++k)
+        if (x_index[d][k] >= 0) ks.push_back(static_cast<int>(k));
+      if (ks.size() < 2) continue;
+      for (std::size_t k = 0; k < K; ++k) {
+        if (x_index[d][k] < 0) continue;
+        const double t = t_k[k];
+        std::vector<int> near = ks;
+        std::sort(near.begin(), near.end(), [&](int a, int b) {
+          return std::abs(t_k[static_cast<std::size_t>(a)] - t) < std::abs(t_k[static_cast<std::size_t>(b)] - t);
+        });
+        near.resize(std::min<std::size_t>(3, near.size()));
+        std::sort(near.begin(), near.end());
+        auto& st = stencil[static_cast<std::size_t>(d)][k];
+        const int ia = near.front(), ic = near.back();
+        const double ta = t_k[static_cast<std::size_t>(ia)], tc = t_k[static_cast<std::size_t>(ic)];
+        if (near.size() == 3) {
+          const int ib = near[1];
+          const double tb = t_k[static_cast<std::size_t>(ib)];
+          if (tb - ta > 0.01 && tc - tb > 0.01) {
+            st = {{ia, (2 * t - tb - tc) / ((ta - tb) * (ta - tc))},
+                  {ib, (2 * t - ta - tc) / ((tb - ta) * (tb - tc))},
+                  {ic, (2 * t - ta - tb) / ((tc - ta) * (tc - tb))}};
+            continue;
+          }
+        }
+        const double dt = std::max(0.05, tc - ta);
+        st = {{ia, -1.0 / dt}, {ic, 1.0 / dt}};
+      }
+    }
+  }
+  /// v_cache from the origins in p through the stencils, limited to 3 x speed_mps (a start of the
+  /// multi-start, or a formation being left, can string a track metres apart: taken at face value, its
+  /// velocity would move a tone's emitter by metres); v_scale: the factor applied (1 = none).
+  void velocities(const Eigen::VectorXd& p) const {
+    const std::size_t K = m_k.size();
+    v_cache.assign(static_cast<std::size_t>(n_dev) * K, Eigen::Vector3d::Zero());
+    v_scale.assign(static_cast<std::size_t>(n_dev) * K, 1.0);
+    const double v_max = 3.0 * net.speed_mps;
+    for (int d = 0; d < n_dev; ++d)
+      for (std::size_t k = 0; k < K; ++k) {
+        Eigen::Vector3d& v = v_cache[static_cast<std::size_t>(d) * K + k];
+        for (const auto& [kj, coef] : stencil[static_cast<std::size_t>(d)][k])
+          v += coef * p.segment<3>(x_index[d][static_cast<std::size_t>(kj)]);
+        if (v.norm() > v_max) {
+          v_scale[static_cast<std::size_t>(d) * K + k] = v_max / v.norm();
+          v *= v_max / v.norm();
+        }
+      }
+  }
+  mutable std::vector<double> v_scale;  ///< [dev * K + k]
   /// Whitened residuals; equation residuals first (eqs order), then priors.
   void residuals(const Eigen::VectorXd& p, Eigen::VectorXd& r) const {
     r.resize(n_residuals());
@@ -93,22 +162,43 @@ struct Problem {
     for (std::size_t k = 0; k < K; ++k)
       if (x_index[dev2][k] >= 0)
         n_cache[k] = p.segment<3>(x_index[dev2][k]) + rot_cache[static_cast<std::size_t>(dev2) * K + k] * *speaker[dev2];
+    // Velocity (device 1's frame) of a point of device d's body at exchange k: zero for device 1 (the
+    // frame) and still devices; origin velocity plus the gyro's rotation of the lever arm otherwise.
+    auto point_velocity = [&](int d, std::size_t k, const Eigen::Vector3d& point) -> Eigen::Vector3d {
+      if (!motion || d < 0 || still[d]) return Eigen::Vector3d::Zero();
+      const std::size_t dk = static_cast<std::size_t>(d) * K + k;
+      return v_cache[dk] + rot_cache[dk] * w_body[d][k].cross(point);
+    };
     int i = 0;
     for (const Eq& e : eqs) {
       double v = 0.0;
       const std::size_t k = static_cast<std::size_t>(e.k);
+      // Receiver minus emitter at the instants of emission and arrival (w), and their velocities.
+      Eigen::Vector3d w = Eigen::Vector3d::Zero(), v_rx = Eigen::Vector3d::Zero(), v_tx = Eigen::Vector3d::Zero();
+      if (e.kind != Kind::HearsM && motion) v_tx = point_velocity(dev2, k, *speaker[dev2]);
+      const Eigen::Vector3d n_emitted = n_cache[k] + dt_n_s[k] * v_tx;
       switch (e.kind) {
         case Kind::OneHearsN:
-          v = (e.point - n_cache[k]).norm() - p[rho_index[dev2][e.k]] - e.y;
+          w = e.point - n_emitted;
+          v = w.norm() - p[rho_index[dev2][e.k]] - e.y;
           break;
         case Kind::HearsM:
-          v = (x_of(e.dev, e.k, p) + rot_cache[static_cast<std::size_t>(e.dev) * K + k] * e.point - m_k[k]).norm() +
-              p[rho_index[e.dev][e.k]] - e.y;
+          v_rx = point_velocity(e.dev, k, e.point);
+          w = x_of(e.dev, e.k, p) + rot_cache[static_cast<std::size_t>(e.dev) * K + k] * e.point - m_k[k];
+          v = w.norm() + p[rho_index[e.dev][e.k]] - e.y;
           break;
         case Kind::HearsN:
-          v = (x_of(e.dev, e.k, p) + rot_cache[static_cast<std::size_t>(e.dev) * K + k] * e.point - n_cache[k]).norm() +
-              p[rho_index[e.dev][e.k]] - p[rho_index[dev2][e.k]] - e.y;
+          v_rx = point_velocity(e.dev, k, e.point);
+          w = x_of(e.dev, e.k, p) + rot_cache[static_cast<std::size_t>(e.dev) * K + k] * e.point + e.dt_rx_s * v_rx -
+              n_emitted;
+          v = w.norm() + p[rho_index[e.dev][e.k]] - p[rho_index[dev2][e.k]] - e.y;
           break;
+      }
+      // Range-Doppler coupling (dsp::doppler_timing_instant_s): the arrival was timed late by
+      // rdot * instant (in metres), so the model's range is compared with y minus that.
+      if (motion) {
+        const double rdot = (v_rx - v_tx).dot(w) / std::max(w.norm(), 1e-12);
+        v += rdot * (e.kind == Kind::HearsM ? instant_m_s : instant_n_s);
       }
       r[i++] = v / e.sigma;
     }
@@ -156,23 +246,39 @@ void jacobian(const Problem& pr, const Eigen::VectorXd& p, Eigen::MatrixXd& jac)
     return Eigen::Vector3d(p.segment<3>(pr.x_index[d2][k]) + rot[static_cast<std::size_t>(d2) * K + k] * *pr.speaker[d2]);
   };
   int i = 0;
+  // Motion within an exchange (as in residuals): a point's velocity (the origins' part held fixed, see
+  // Problem::motion), and d residual / d velocity of device d's point `body` at exchange k = g (a row)
+  // through the rotation of the lever arm's spin (w x body) onto its heading offset.
+  auto point_velocity = [&](int d, std::size_t k, const Eigen::Vector3d& body) -> Eigen::Vector3d {
+    if (!pr.motion || d < 0 || pr.still[d]) return Eigen::Vector3d::Zero();
+    const std::size_t dk = static_cast<std::size_t>(d) * K + k;
+    return pr.v_cache[dk] + rot[dk] * pr.w_body[d][k].cross(body);
+  };
+  auto motion_terms = [&](int d, std::size_t k, const Eigen::Vector3d& body, const Eigen::Vector3d& g) {
+    if (d < 0 || pr.still[d]) return;
+    const double inv = 1.0 / pr.eqs[static_cast<std::size_t>(i)].sigma;
+    jac(i, pr.psi_index[d]) += inv * g.dot(drot[static_cast<std::size_t>(d) * K + k] * pr.w_body[d][k].cross(body));
+  };
   for (const Eq& e : pr.eqs) {
     const std::size_t k = static_cast<std::size_t>(e.k);
     const double inv = 1.0 / e.sigma;
     switch (e.kind) {
       case Kind::OneHearsN: {
-        const Eigen::Vector3d w = n_at(k) - e.point;
+        const Eigen::Vector3d w = n_at(k) + pr.dt_n_s[k] * point_velocity(d2, k, *pr.speaker[d2]) - e.point;
         const Eigen::Vector3d u = w / std::max(w.norm(), 1e-12);
         jac.block<1, 3>(i, pr.x_index[d2][k]) += inv * u.transpose();
         jac(i, pr.psi_index[d2]) += inv * u.dot(drot[static_cast<std::size_t>(d2) * K + k] * *pr.speaker[d2]);
         jac(i, pr.rho_index[d2][k]) += -inv;
+        if (pr.motion) motion_terms(d2, k, *pr.speaker[d2], (pr.dt_n_s[k] + pr.instant_n_s) * u);
         break;
       }
       case Kind::HearsM:
       case Kind::HearsN: {
         const std::size_t dk = static_cast<std::size_t>(e.dev) * K + k;
-        const Eigen::Vector3d target = e.kind == Kind::HearsM ? pr.m_k[k] : n_at(k);
-        const Eigen::Vector3d w = p.segment<3>(pr.x_index[e.dev][k]) + rot[dk] * e.point - target;
+        const Eigen::Vector3d target =
+            e.kind == Kind::HearsM ? pr.m_k[k] : Eigen::Vector3d(n_at(k) + pr.dt_n_s[k] * point_velocity(d2, k, *pr.speaker[d2]));
+        const Eigen::Vector3d w = p.segment<3>(pr.x_index[e.dev][k]) + rot[dk] * e.point +
+                                  (e.kind == Kind::HearsN ? e.dt_rx_s : 0.0) * point_velocity(e.dev, k, e.point) - target;
         const Eigen::Vector3d u = w / std::max(w.norm(), 1e-12);
         jac.block<1, 3>(i, pr.x_index[e.dev][k]) += inv * u.transpose();
         jac(i, pr.psi_index[e.dev]) += inv * u.dot(drot[dk] * e.point);
@@ -181,6 +287,14 @@ void jacobian(const Problem& pr, const Eigen::VectorXd& p, Eigen::MatrixXd& jac)
           jac.block<1, 3>(i, pr.x_index[d2][k]) -= inv * u.transpose();
           jac(i, pr.psi_index[d2]) -= inv * u.dot(drot[static_cast<std::size_t>(d2) * K + k] * *pr.speaker[d2]);
           jac(i, pr.rho_index[d2][k]) -= inv;
+        }
+        if (pr.motion) {  // the velocities' origins: the receiver's motion and coupling, the emitter's
+          if (e.kind == Kind::HearsM) {
+            motion_terms(e.dev, k, e.point, pr.instant_m_s * u);
+          } else {
+            motion_terms(e.dev, k, e.point, (e.dt_rx_s + pr.instant_n_s) * u);
+            motion_terms(d2, k, *pr.speaker[d2], -(pr.dt_n_s[k] + pr.instant_n_s) * u);
+          }
         }
         break;
       }
@@ -227,9 +341,9 @@ double weighted_cost(const Eigen::VectorXd& r, const Eigen::VectorXd& w) {
   return (r.array().square() * w.array()).sum();
 }
 
-/// Levenberg-Marquardt over the parameters flagged in `free_mask`. Returns the final cost.
-double solve_lm(const Problem& pr, Eigen::VectorXd& p, const std::vector<bool>& free_mask, int iterations,
-                Eigen::MatrixXd* info_out = nullptr) {
+/// One Levenberg-Marquardt run (solve_lm).
+double solve_lm_pass(const Problem& pr, Eigen::VectorXd& p, const std::vector<bool>& free_mask, int iterations,
+                     Eigen::MatrixXd* info_out) {
   const int n_eq = static_cast<int>(pr.eqs.size());
   std::vector<int> cols;
   for (int j = 0; j < pr.n_params; ++j)
@@ -290,6 +404,40 @@ double solve_lm(const Problem& pr, Eigen::VectorXd& p, const std::vector<bool>& 
   return cost;
 }
 
+/// Levenberg-Marquardt over the parameters flagged in `free_mask`. Returns the final cost. With motion
+/// within exchanges, the moving devices' velocities are taken from the start p and held over a run,
+/// then re-derived from its result and the run repeated, up to three passes, until they change by
+/// less than 5 mm/s. Every run, the multi-start's too: candidate formations are compared with
+/// velocities of their own (docs/tum.md, "Motion within an exchange": only the final solve: 17 of 20
+/// ellipse seeds instead of 19).
+double solve_lm(const Problem& pr, Eigen::VectorXd& p, const std::vector<bool>& free_mask, int iterations,
+                Eigen::MatrixXd* info_out = nullptr) {
+  if (!pr.motion) return solve_lm_pass(pr, p, free_mask, iterations, info_out);
+  double cost = 0.0;
+  for (int pass = 0; pass < 3; ++pass) {
+    pr.velocities(p);
+    const std::vector<Eigen::Vector3d> used = pr.v_cache;
+    cost = solve_lm_pass(pr, p, free_mask, iterations, info_out);
+    if (pass == 2) break;
+    pr.velocities(p);
+    double change = 0.0;
+    for (std::size_t i = 0; i < used.size(); ++i) change = std::max(change, (pr.v_cache[i] - used[i]).norm());
+    pr.v_cache = used;
+    if (change < 0.005) break;
+  }
+  return cost;
+}
+
+/// A device's reference instant in an exchange (its clock): the mean of its arrivals of device 1's
+/// tone, where its attitude and gyro rate were taken (messages.hpp); NaN when it heard none.
+double reference_time(const DeviceExchange& d) {
+  double sum = 0.0;
+  int n = 0;
+  for (double t : d.t1_s)
+    if (std::isfinite(t)) sum += t, ++n;
+  return n > 0 ? sum / n : std::numeric_limits<double>::quiet_NaN();
+}
+
 }  // namespace
 
 NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
@@ -322,6 +470,9 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
   // ---- layout ----
   Problem pr;
   pr.net = net_;
+  pr.motion = net_.exchange_motion;
+  pr.instant_m_s = net_.doppler_instant1_s;
+  pr.instant_n_s = net_.doppler_instant2_s;
   const std::string id1 = devices[0].id;
   std::map<std::string, int> index;
   for (const Exchange& e : window_)
@@ -341,6 +492,8 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
   pr.r1t.assign(static_cast<std::size_t>(pr.n_dev), std::vector<Eigen::Matrix3d>(static_cast<std::size_t>(K), Eigen::Matrix3d::Identity()));
   pr.rd = pr.r1t;
   pr.speaker.assign(static_cast<std::size_t>(pr.n_dev), std::nullopt);
+  pr.w_body.assign(static_cast<std::size_t>(pr.n_dev), std::vector<Eigen::Vector3d>(static_cast<std::size_t>(K), Eigen::Vector3d::Zero()));
+  pr.dt_n_s.assign(static_cast<std::size_t>(K), 0.0);
   std::vector<std::vector<const DeviceExchange*>> obs(static_cast<std::size_t>(pr.n_dev),
                                                       std::vector<const DeviceExchange*>(static_cast<std::size_t>(K), nullptr));
   for (int k = 0; k < K; ++k) {
@@ -358,7 +511,10 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
       pr.rd[di][k] = d.attitude->toRotationMatrix();
       if (d.speaker) pr.speaker[di] = d.speaker;
       if (d.moving) pr.still[di] = false;
+      if (d.gyro_radps) pr.w_body[di][k] = *d.gyro_radps;
     }
+    const double ref2 = reference_time(e.devices[1]);
+    if (std::isfinite(ref2) && std::isfinite(e.t_n2)) pr.dt_n_s[static_cast<std::size_t>(k)] = e.t_n2 - ref2;
   }
   if (!pr.speaker[pr.dev2]) return out;
   // Heading offsets are observable only while the geometry changes (a device moves): with every device
@@ -408,9 +564,11 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
       for (std::size_t j = 0; j < o->mics.size(); ++j) {
         if (j < o->t1_s.size() && std::isfinite(o->t1_s[j]))
           pr.eqs.push_back(Eq{Kind::HearsM, k, d, o->mics[j], c * (o->t1_s[j] - e.t_m1), sigma_for(o->mics[j])});
-        if (d != pr.dev2 && obs[pr.dev2][k] && j < o->t2_s.size() && std::isfinite(o->t2_s[j]))
+        if (d != pr.dev2 && obs[pr.dev2][k] && j < o->t2_s.size() && std::isfinite(o->t2_s[j])) {
+          const double ref = reference_time(*o);
           pr.eqs.push_back(Eq{Kind::HearsN, k, d, o->mics[j], c * (o->t2_s[j] - e.t_n2),
-                              std::sqrt(2.0) * sigma_for(o->mics[j])});
+                              std::sqrt(2.0) * sigma_for(o->mics[j]), std::isfinite(ref) ? o->t2_s[j] - ref : 0.0});
+        }
       }
     }
   }
@@ -430,6 +588,10 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
       p.segment<3>(pr.x_index[d][k]) = x;
     }
     known[static_cast<std::size_t>(d)] = s.known;
+  }
+  if (pr.motion) {
+    pr.build_stencils();
+    pr.velocities(p);  // solve_lm sets them for each run; residuals() outside one use these
   }
   // Clock offsets from the HearsM arrivals at the positions in q (one device, or every device: -1).
   auto init_rho = [&](Eigen::VectorXd& q, int only = -1) {

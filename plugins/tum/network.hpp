@@ -15,6 +15,11 @@
 //             down-weighted, Sec. VIII); weak priors: psi_d ~ N(0, yaw_prior_rad), and every device's
 //             height relative to device 1 ~ N(0, height_prior_m) along device 1's gravity axis (it
 //             only matters where the geometry leaves height unobservable).
+//   motion    (exchange_motion) a moving device is placed at its reference instant, its hearing of
+//             device 1's tone; its hearing of device 2's tone and device 2's emission are moved by
+//             their time from it (velocity: the window's track of origins plus the gyro's spin of the
+//             lever arm), and every arrival's chirp range-Doppler coupling is taken out (docs/tum.md,
+//             "Motion within an exchange": the paper's Eq. 7-10).
 // Levenberg-Marquardt with an analytic Jacobian (a few dozen unknowns), started from the previous
 // window's solution; a device seen for the first time starts from every root of its single-exchange
 // solution (solver.hpp) and the best is kept. Covariances: (J^T W J)^-1 scaled by the window's
@@ -58,6 +63,14 @@ struct NetworkConfig {
   double basin_drop_chi2 = 30.0;   ///< a basin worse than the best by more than this (chi2) is dropped
   double unobserved_height_ratio = 0.5;  ///< posterior / prior vertical std above which height is unobserved
   double moving_height_candidates_m = 0.3;  ///< a moving device 2's roots also tried this much higher / lower (0 = off)
+  /// Motion within an exchange (docs/tum.md, "Motion within an exchange"): a moving device is placed at
+  /// its reference instant (its hearing of device 1's tone); its hearing of device 2's tone and device
+  /// 2's emission are moved by their time from it, and every arrival between devices whose range
+  /// changes at rdot is taken as timed rdot / c * the tone's instant late (the chirps' range-Doppler
+  /// coupling, dsp::doppler_timing_instant_s). Velocities: the window's per-exchange origins
+  /// (differences) plus the gyro's rotation of the lever arms.
+  bool exchange_motion = false;
+  double doppler_instant1_s = 0.0, doppler_instant2_s = 0.0;  ///< device 1's / device 2's tone (s)
 };
 
 struct NetworkPlacement {

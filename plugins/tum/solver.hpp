@@ -39,6 +39,7 @@ struct DeviceExchange {
   std::optional<Eigen::Vector3d> speaker;        ///< body frame
   std::optional<Eigen::Quaterniond> attitude;    ///< body -> reference
   bool moving = false;
+  std::optional<Eigen::Vector3d> gyro_radps;     ///< body-frame angular rate at its hearing of device 1's tone
   std::vector<double> t1_s, t2_s;                ///< per mic, local clock; NaN = not heard
 };
 

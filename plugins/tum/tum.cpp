@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "locus/dsp/signals.hpp"
 #include "locus/emitter.hpp"
 #include "messages.hpp"
 #include "network.hpp"
@@ -49,6 +50,7 @@ DeviceExchange to_exchange(const ObsMessage& m) {
   if (m.speaker_m) d.speaker = Eigen::Vector3d((*m.speaker_m)[0], (*m.speaker_m)[1], (*m.speaker_m)[2]);
   if (m.q_wxyz) d.attitude = Eigen::Quaterniond((*m.q_wxyz)[0], (*m.q_wxyz)[1], (*m.q_wxyz)[2], (*m.q_wxyz)[3]).normalized();
   d.moving = m.moving;
+  if (m.gyro_radps) d.gyro_radps = Eigen::Vector3d((*m.gyro_radps)[0], (*m.gyro_radps)[1], (*m.gyro_radps)[2]);
   d.t1_s = m.t1_s;
   d.t2_s = m.t2_s;
   return d;
@@ -133,8 +135,18 @@ class TumLocalizer final : public Localizer {
       if (w2.empty() && emitters.size() >= 2) w2 = emitters[1];
       if (template_of_.count(w1)) template1_ = template_of_[w1];
       if (template_of_.count(w2)) template2_ = template_of_[w2];
+      if (template1_ < static_cast<int>(lfms.size())) scene_tone1_ = *lfms[static_cast<std::size_t>(template1_)];
+      if (template2_ < static_cast<int>(lfms.size())) scene_tone2_ = *lfms[static_cast<std::size_t>(template2_)];
     }
     configure_live(params);
+    net_cfg_.exchange_motion = params.get_bool("exchange_motion");
+    if (net_cfg_.exchange_motion) {
+      // Both tones are lfm (the sample rate only matters for gold signals).
+      const SignalSpec& t1 = scene_tone1_ ? *scene_tone1_ : tone1_;
+      const SignalSpec& t2 = scene_tone2_ ? *scene_tone2_ : tone2_;
+      net_cfg_.doppler_instant1_s = dsp::doppler_timing_instant_s(t1, 48000.0);
+      net_cfg_.doppler_instant2_s = dsp::doppler_timing_instant_s(t2, 48000.0);
+    }
     if (live_ && w1.empty() && w2.empty()) {
       // the working devices are elected on the link (docs/tum.md, "Live roles")
     } else if (w1.empty() || w2.empty() || w1 == w2)
@@ -180,7 +192,7 @@ class TumLocalizer final : public Localizer {
       if (s->device.view() != device_) return;
       const double g = std::sqrt(double(s->gyro_radps[0]) * s->gyro_radps[0] + double(s->gyro_radps[1]) * s->gyro_radps[1] +
                                  double(s->gyro_radps[2]) * s->gyro_radps[2]);
-      motion_.push_back({s->t_s, g > motion_gyro_radps_});
+      motion_.push_back({s->t_s, g > motion_gyro_radps_, {s->gyro_radps[0], s->gyro_radps[1], s->gyro_radps[2]}});
       while (motion_.size() > 4096) motion_.pop_front();
       imu_t_ = std::max(imu_t_, s->t_s);
       close_exchanges(horizon());
@@ -220,6 +232,7 @@ class TumLocalizer final : public Localizer {
   struct MotionAt {
     double t_s;
     bool moving;
+    std::array<double, 3> gyro_radps;
   };
 
   /// The local time up to which every input stream of this device has been seen: detections, attitude
@@ -231,6 +244,53 @@ class TumLocalizer final : public Localizer {
     if (attitude_t_ > -kInf) h = std::min(h, attitude_t_);
     if (imu_t_ > -kInf) h = std::min(h, imu_t_);
     return h;
+  }
+
+  /// The attitude at local time t: interpolated (normalised lerp, the shorter way) between the events
+  /// around it, else the nearest within 1 s; none when there is none.
+  std::optional<std::array<double, 4>> attitude_at(double t) const {
+    const AttitudeAt* before = nullptr;
+    const AttitudeAt* after = nullptr;
+    const AttitudeAt* nearest = nullptr;
+    for (const auto& a : attitudes_) {
+      if (a.t_s <= t && (!before || a.t_s > before->t_s)) before = &a;
+      if (a.t_s >= t && (!after || a.t_s < after->t_s)) after = &a;
+      if (!nearest || std::abs(a.t_s - t) < std::abs(nearest->t_s - t)) nearest = &a;
+    }
+    if (before && after && after->t_s - before->t_s < 0.25) {
+      const double u = after->t_s > before->t_s ? (t - before->t_s) / (after->t_s - before->t_s) : 0.0;
+      double dot = 0.0;
+      for (int i = 0; i < 4; ++i) dot += before->q[static_cast<std::size_t>(i)] * after->q[static_cast<std::size_t>(i)];
+      const double sgn = dot < 0.0 ? -1.0 : 1.0;
+      std::array<double, 4> q{};
+      double n2 = 0.0;
+      for (std::size_t i = 0; i < 4; ++i) {
+        q[i] = (1.0 - u) * before->q[i] + u * sgn * after->q[i];
+        n2 += q[i] * q[i];
+      }
+      for (double& v : q) v /= std::sqrt(n2);
+      return q;
+    }
+    if (nearest && std::abs(nearest->t_s - t) < 1.0) return nearest->q;
+    return std::nullopt;
+  }
+
+  /// The gyro's body-frame rate at local time t: the mean of its samples within 25 ms (the nearest
+  /// within 0.1 s when none); none without an IMU.
+  std::optional<Vec3a> gyro_at(double t) const {
+    Vec3a sum{0.0, 0.0, 0.0};
+    int n = 0;
+    const MotionAt* nearest = nullptr;
+    for (const auto& mo : motion_) {
+      if (std::abs(mo.t_s - t) <= 0.025) {
+        for (std::size_t i = 0; i < 3; ++i) sum[i] += mo.gyro_radps[i];
+        ++n;
+      }
+      if (!nearest || std::abs(mo.t_s - t) < std::abs(nearest->t_s - t)) nearest = &mo;
+    }
+    if (n > 0) return Vec3a{sum[0] / n, sum[1] / n, sum[2] / n};
+    if (nearest && std::abs(nearest->t_s - t) < 0.1) return nearest->gyro_radps;
+    return std::nullopt;
   }
 
   /// Publishes every exchange whose window has closed by local time `now`.
@@ -252,11 +312,15 @@ class TumLocalizer final : public Localizer {
         auto& s = it->tone == 1 ? snr1 : snr2;
         if (it->snr_db > s[it->channel]) s[it->channel] = it->snr_db, t[it->channel] = it->t_s;
       }
-      // The attitude at the exchange: the nearest Attitude event.
-      const AttitudeAt* best = nullptr;
-      for (const auto& a : attitudes_)
-        if (!best || std::abs(a.t_s - start) < std::abs(best->t_s - start)) best = &a;
-      if (best != nullptr && std::abs(best->t_s - start) < 1.0) m.q_wxyz = best->q;
+      // The exchange's reference instant: this device's hearing of device 1's tone (the window solve
+      // places a moving device there and corrects its other arrivals by its motion, network.hpp).
+      double ref = 0.0;
+      int n_ref = 0;
+      for (double t : m.t1_s)
+        if (std::isfinite(t)) ref += t, ++n_ref;
+      ref = n_ref > 0 ? ref / n_ref : start;
+      m.q_wxyz = attitude_at(ref);
+      m.gyro_radps = gyro_at(ref);
       // Moving: the gyro saw rotation since the previous exchange (or in the last second).
       const double since = std::max(last_exchange_s_, start - 1.0);
       for (const auto& mo : motion_)
@@ -696,6 +760,7 @@ class TumLocalizer final : public Localizer {
   std::string instance_, device_, prefix_, detector_, device1_, device2_;
   bool reporter_ = false;
   int template1_ = 0, template2_ = 1;
+  std::optional<SignalSpec> scene_tone1_, scene_tone2_;  ///< the working devices' tones, from the scene
   std::map<std::string, int> template_of_;
   std::vector<std::array<double, 3>> mics_;
   std::optional<std::array<double, 3>> speaker_;
@@ -740,6 +805,9 @@ const ParamSchema& schema() {
                   "Detections within this time of an exchange's first belong to it (loose sync: the two tones' offset)."),
       float_param("speed_of_sound_mps", 0.0, 0.0, 400.0, "m/s",
                   "Speed of sound; 0 = measured from the working devices' own emissions (known mic-speaker geometry)."),
+      bool_param("exchange_motion", true,
+                 "Correct a moving device's arrivals for its motion within an exchange (Eq. 7-10: the tones are heard and "
+                 "sent at different instants) and for the chirps' range-Doppler coupling (docs/tum.md, \"Motion within an exchange\")."),
       float_param("timing_std_s", 5.0e-6, 1e-7, 1e-2, "s", "Arrival timing error (1 sigma) assumed by the solver."),
       float_param("attitude_std_rad", 0.02, 0.0, 1.0, "rad", "Relative attitude error (1 sigma), applied to the mic/speaker lever arms."),
       float_param("max_range_m", 10.0, 0.2, 100.0, "m", "Roots farther from device 1 are dropped."),

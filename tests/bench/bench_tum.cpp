@@ -7,13 +7,16 @@
 //   BM_TumPairRoots          one exchange's working pair alone: every root of Eq. 6 (multi-start LM)
 //   BM_TumNetworkExchange    one exchange added to the 12-exchange window (4 devices, one moving):
 //                            the pair's roots as candidates, the window's Levenberg-Marquardt, the
-//                            covariances (steady state: the window is full, the devices known)
+//                            covariances (steady state: the window is full, the devices known);
+//                            exchange_motion:1 as the plugin runs (motion within an exchange, Doppler
+//                            coupling: up to three LM passes), :0 without
 // Detection of one exchange is the chirp detector's cost (locus_bench_chirp, BM_ChirpTumWorking): its
 // per-exchange figure and the sum are in docs/tum.md, "Speed". CPU time, single-threaded.
 #include <benchmark/benchmark.h>
 
 #include <random>
 
+#include "locus/dsp/signals.hpp"
 #include "support/tum_synthetic.hpp"
 #include "tum/network.hpp"
 #include "tum/tracker.hpp"
@@ -54,7 +57,15 @@ void BM_TumNetworkExchange(benchmark::State& state) {
   auto poses = layout(0.8, true);
   tum::SolverConfig cfg;
   cfg.speed_of_sound_mps = kC;
-  tum::NetworkSolver net(cfg, tum::NetworkConfig{});
+  tum::NetworkConfig ncfg;
+  ncfg.exchange_motion = state.range(0) != 0;  // the plugin's default: on, with TUM's tones' instants
+  locus::SignalSpec up;
+  up.type = "lfm", up.f0_hz = 2000, up.f1_hz = 8000, up.duration_s = 0.04, up.fade_s = 0.005;
+  locus::SignalSpec down = up;
+  std::swap(down.f0_hz, down.f1_hz);
+  ncfg.doppler_instant1_s = locus::dsp::doppler_timing_instant_s(up, 44100.0);
+  ncfg.doppler_instant2_s = locus::dsp::doppler_timing_instant_s(down, 44100.0);
+  tum::NetworkSolver net(cfg, ncfg);
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> lat(-0.03, 0.04);
   int k = 0;
@@ -77,7 +88,7 @@ void BM_TumNetworkExchange(benchmark::State& state) {
     benchmark::DoNotOptimize(net.add(ex));
   }
 }
-BENCHMARK(BM_TumNetworkExchange)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_TumNetworkExchange)->ArgName("exchange_motion")->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

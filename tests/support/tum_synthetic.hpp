@@ -4,6 +4,8 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <functional>
+#include <map>
 #include <optional>
 #include <random>
 #include <string>
@@ -61,6 +63,60 @@ inline std::vector<tum::DeviceExchange> exchange(const std::vector<Pose>& poses,
       e.t1_s.push_back(t1 + (w - m).norm() / kC + d.clock_offset_s + e1);
       e.t2_s.push_back(t2 + (w - n).norm() / kC + d.clock_offset_s + e2);
     }
+    out.push_back(e);
+  }
+  return out;
+}
+
+/// A device that moves: `pose(t)` gives its origin and attitude at true time t (mics, speaker and clock
+/// as in Pose); `rate(t)` its body-frame angular rate.
+struct Mover {
+  std::function<std::pair<Vector3d, Quaterniond>(double)> pose;
+  std::function<Vector3d(double)> rate;
+};
+
+/// One exchange with devices that move while it lasts (docs/tum.md, "Motion within an exchange"):
+/// every arrival at its retarded time (t - te = |mic(t) - speaker(te)| / c), timed late by the
+/// range-Doppler coupling (rdot / c) * instant of its tone (instant1_s / instant2_s, as a phase-timed
+/// chirp detector does: dsp::doppler_timing_instant_s); each device's attitude and gyro rate taken at
+/// its hearing of tone 1 (the mean over its mics), as the plugin reports them; `moving` set for movers.
+inline std::vector<tum::DeviceExchange> moving_exchange(const std::vector<Pose>& poses, const std::map<std::string, Mover>& movers,
+                                                        double t1, double t2, double instant1_s, double instant2_s) {
+  auto at = [&](const Pose& d, double t) -> std::pair<Vector3d, Quaterniond> {
+    const auto it = movers.find(d.id);
+    return it == movers.end() ? std::make_pair(d.p, d.q) : it->second.pose(t);
+  };
+  auto point = [&](const Pose& d, const Vector3d& body, double t) {
+    const auto [p, q] = at(d, t);
+    return Vector3d(p + q * body);
+  };
+  constexpr double h = 1e-4;  // for velocities by central differences
+  auto arrival = [&](const Pose& src, double te, const Pose& d, const Vector3d& mic, double instant_s) {
+    double t = te;
+    for (int it = 0; it < 8; ++it) t = te + (point(d, mic, t) - point(src, src.speaker, te)).norm() / kC;
+    const Vector3d w = point(d, mic, t) - point(src, src.speaker, te);
+    const Vector3d v = (point(d, mic, t + h) - point(d, mic, t - h)) / (2 * h) -
+                       (point(src, src.speaker, te + h) - point(src, src.speaker, te - h)) / (2 * h);
+    return t + v.dot(w.normalized()) / kC * instant_s;
+  };
+  std::vector<tum::DeviceExchange> out;
+  for (const Pose& d : poses) {
+    tum::DeviceExchange e;
+    e.id = d.id;
+    e.mics = d.mics;
+    e.speaker = d.speaker;
+    double ref = 0.0;
+    for (const Vector3d& mic : d.mics) {
+      const double a1 = arrival(poses[0], t1, d, mic, &d == &poses[0] ? 0.0 : instant1_s);
+      const double a2 = arrival(poses[1], t2, d, mic, &d == &poses[1] ? 0.0 : instant2_s);
+      ref += a1 / static_cast<double>(d.mics.size());
+      e.t1_s.push_back(a1 + d.clock_offset_s);
+      e.t2_s.push_back(a2 + d.clock_offset_s);
+    }
+    e.attitude = at(d, ref).second;
+    const auto it = movers.find(d.id);
+    e.moving = it != movers.end();
+    e.gyro_radps = e.moving ? it->second.rate(ref) : Vector3d::Zero();
     out.push_back(e);
   }
   return out;

@@ -34,7 +34,7 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from check_tum_arrivals import arrivals_from_extra, arrivals_from_geometry, load_scene, quat_rot  # noqa: E402
+from check_tum_arrivals import arrivals_from_extra, arrivals_from_geometry, load_scene  # noqa: E402
 
 
 def gold_emitters(scene):
@@ -79,8 +79,6 @@ def main():
     a = ap.parse_args()
 
     scene = load_scene(a.scene)
-    fs = float(scene['sample_rate'])
-    c = float(scene.get('speed_of_sound', 343.0))
     tmpl, length = gold_emitters(scene)
     arrivals = arrivals_from_extra(a.scene)
     source = 'truth-extra.yaml'
@@ -124,7 +122,7 @@ def main():
                     dets.append(e)
 
     table = {}
-    for em, src, dev, mic, samp in arrivals:
+    for em, src, dev, mic, samp, *_ in arrivals:
         table.setdefault((dev, mic, src), []).append([samp, em, None, None])
     for v in table.values():
         v.sort()

@@ -78,9 +78,12 @@ def arrivals_from_extra(scene_dir):
         return None
     emitter = {int(e['id']): e['emitter'] for e in extra['emissions']}
     cols = extra['arrivals']['columns']
-    ie, idev, imic, isamp = (cols.index(k) for k in ('emission', 'device', 'mic', 'local_sample'))
-    return [(int(r[ie]), emitter[int(r[ie])], str(r[idev]), int(r[imic]), float(r[isamp]))
-            for r in extra['arrivals']['rows']]
+    ie, idev, imic, isamp, it, idist = (cols.index(k) for k in ('emission', 'device', 'mic', 'local_sample', 't_true',
+                                                                 'dist_m'))
+    c = float(load_scene(scene_dir).get('speed_of_sound', 343.0))
+    # (emission, emitter, device, mic, local sample, true arrival time, true emission time)
+    return [(int(r[ie]), emitter[int(r[ie])], str(r[idev]), int(r[imic]), float(r[isamp]), float(r[it]),
+             float(r[it]) - float(r[idist]) / c) for r in extra['arrivals']['rows']]
 
 
 def quat_rot(q, v):
@@ -91,10 +94,8 @@ def quat_rot(q, v):
     return R @ v
 
 
-def arrivals_from_geometry(scene_dir, scene):
-    fs = float(scene['sample_rate'])
-    c = float(scene.get('speed_of_sound', 343.0))
-    clocks = scene['truth']['clocks']
+def truth_poses(scene_dir, scene):
+    """pose(id, t) -> (position, quaternion wxyz) from the scene's truth trajectories (linear in between)."""
     traj = {}
     with open(os.path.join(scene_dir, scene['truth'].get('trajectories', 'truth.csv'))) as f:
         for row in csv.DictReader(f):
@@ -111,6 +112,49 @@ def arrivals_from_geometry(scene_dir, scene):
         p = a[j - 1, 1:4] + u * (a[j, 1:4] - a[j - 1, 1:4])
         q = a[j - 1, 4:8] + u * (a[j, 4:8] - a[j - 1, 4:8])
         return p, q / np.linalg.norm(q)
+    return pose
+
+
+def doppler_instant_s(sig):
+    """Timing instant of a phase-timed detector (dsp::doppler_timing_instant_s, written again here):
+    sum u f(u) w(u)^2 / sum f(u) w(u)^2 over the signal, w the raised-cosine fade."""
+    dur, fade = float(sig['duration']), float(sig.get('fade', 0.0))
+    u = (np.arange(4096) + 0.5) * dur / 4096
+    w = np.ones_like(u)
+    if fade > 0:
+        edge = np.minimum(u, dur - u)
+        w = np.where(edge < fade, 0.5 - 0.5 * np.cos(np.pi * edge / fade), 1.0)
+    f = float(sig['f0']) + (float(sig['f1']) - float(sig['f0'])) * u / dur
+    return float(np.sum(u * f * w * w) / np.sum(f * w * w))
+
+
+def coupling_samples(scene, pose, src, te, dev, mic, t):
+    """The range-Doppler coupling of one arrival (samples): (rdot / c) * the emitted signal's timing
+    instant * fs, rdot from the truth poses of the speaker at te and the mic at t."""
+    fs = float(scene['sample_rate'])
+    c = float(scene.get('speed_of_sound', 343.0))
+    geo = {d['id']: d for d in scene.get('devices') or []}
+    sig = next((e for e in geo[src].get('emits') or [] if e.get('type') == 'lfm'), None) if src in geo else None
+    if sig is None:
+        return 0.0
+    spk = np.array(geo[src].get('speaker', [0, 0, 0]), float)
+    micb = np.array(geo[dev]['mics'][mic], float)
+
+    def dist(ts, tm):
+        ps, qs = pose(src, ts)
+        pm, qm = pose(dev, tm)
+        return np.linalg.norm(pm + quat_rot(qm, micb) - ps - quat_rot(qs, spk))
+    h = 0.01
+    rdot = (dist(te + h, t + h) - dist(te - h, t - h)) / (2 * h)
+    return rdot / c * doppler_instant_s(sig) * fs
+
+
+def arrivals_from_geometry(scene_dir, scene):
+    """Every (emission, emitter, device, mic, local sample, true arrival time, true emission time)."""
+    fs = float(scene['sample_rate'])
+    c = float(scene.get('speed_of_sound', 343.0))
+    clocks = scene['truth']['clocks']
+    pose = truth_poses(scene_dir, scene)
 
     speakers = {}
     for d in scene.get('devices') or []:
@@ -137,7 +181,7 @@ def arrivals_from_geometry(scene_dir, scene):
                     pm, qm = pose(d['id'], t)
                     t = te + np.linalg.norm(pm + quat_rot(qm, mic) - ps) / c
                 local = t * (1.0 + float(ck['skew_ppm']) * 1e-6) + float(ck['offset_s'])
-                out.append((n, src, d['id'], m, fs * local))
+                out.append((n, src, d['id'], m, fs * local, t, te))
     return out
 
 
@@ -154,6 +198,10 @@ def main():
                     help='subtract the scene-wide median error of the paired detections before classifying (for '
                          'geometry-derived truth: a simulator\'s speaker and mic responses delay every arrival by '
                          'their group delay, which the geometry does not hold; the bias is printed)')
+    ap.add_argument('--doppler', action='store_true',
+                    help='take the range-Doppler coupling of a moving device out of each detection before classifying: '
+                         '(rdot / c) * the chirp\'s timing instant, rdot from the truth poses (what TUM\'s window solve '
+                         'corrects with its own estimate; docs/tum.md "Motion within an exchange")')
     ap.add_argument('--list-bad', action='store_true', help='list every arrival not within 1 sample, and false detections')
     a = ap.parse_args()
 
@@ -181,8 +229,13 @@ def main():
 
     # arrivals per (device, channel, emitter), sorted by sample
     table = {}
-    for em, src, dev, mic, samp in arrivals:
-        table.setdefault((dev, mic, src), []).append([samp, em, None, None])  # sample, emission, det err, det idx
+    pose = truth_poses(a.scene, scene) if a.doppler else None
+    couplings = []
+    for em, src, dev, mic, samp, t_true, te in arrivals:
+        # the sample where a phase-timed detector puts the arrival (coupling included with --doppler)
+        k = coupling_samples(scene, pose, src, te, dev, mic, t_true) if a.doppler and src != dev else 0.0
+        couplings.append(abs(k))
+        table.setdefault((dev, mic, src), []).append([samp + k, em, None, None])  # sample, emission, det err, det idx
     for v in table.values():
         v.sort()
     false = []
@@ -278,6 +331,9 @@ def main():
         print(f"{a.scene}: {n_all} arrivals ({source}), {len(dets)} detections, {len(false)} false")
         if a.remove_median_bias:
             print(f"scene-wide median error removed: {bias:+.3f} samples")
+        if a.doppler:
+            print(f"range-Doppler coupling taken out of each arrival: largest {max(couplings):.2f} samples, "
+                  f"{sum(1 for k in couplings if k > 0.5)} arrivals above 0.5")
         print(f"{'group':8s} {'arrivals':>8s} {'<=1':>7s} {'1-5':>5s} {'>5':>5s} {'missed':>7s}  within 1 sample")
         for g in ('own', 'cross', 'monitor', 'all'):
             s = summary[g]

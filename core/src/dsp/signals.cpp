@@ -106,6 +106,27 @@ std::vector<std::uint8_t> gold_chips(const SignalSpec& spec) {
   return out;
 }
 
+double doppler_timing_instant_s(const SignalSpec& spec, double sample_rate_hz) {
+  if (!spec.acoustic()) return 0.0;
+  // gold: constant amplitude over chips * chip_samples samples, no fades: its middle.
+  if (spec.type == "gold") return 0.5 * static_cast<double>(signal_length(spec, sample_rate_hz)) / sample_rate_hz;
+  const double duration = spec.duration_s;
+  if (duration <= 0.0) return 0.0;
+  // Midpoint rule on 4096 steps: the fades are smooth, the integrands polynomial in between.
+  constexpr int kSteps = 4096;
+  const double du = duration / kSteps;
+  const bool lfm = spec.type == "lfm";
+  double num = 0.0, den = 0.0;
+  for (int i = 0; i < kSteps; ++i) {
+    const double u = (i + 0.5) * du;
+    const double w = fade_weight(u, duration, spec.fade_s);
+    const double f = lfm ? spec.f0_hz + (spec.f1_hz - spec.f0_hz) * u / duration : 1.0;
+    num += u * f * w * w;
+    den += f * w * w;
+  }
+  return den > 0.0 ? num / den : 0.0;
+}
+
 std::size_t signal_length(const SignalSpec& spec, double sample_rate_hz) {
   if (spec.type == "lfm" || spec.type == "multitone") {
     return static_cast<std::size_t>(std::llround(spec.duration_s * sample_rate_hz));

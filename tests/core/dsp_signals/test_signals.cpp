@@ -168,3 +168,30 @@ TEST(Signals, GoldEvaluatorIsBandLimitedInterpolation) {
   // there); -37 dB measured.
   EXPECT_LT(10 * std::log10(err / ref_power), -33.0);
 }
+
+// doppler_timing_instant_s against its closed forms: an lfm without fades is timed at
+// T (f0 + 2 f1) / (3 (f0 + f1)) (the frequency-weighted mean instant), constant-frequency signals at
+// their middle; fades pull the up and down chirps symmetrically (their instants still sum to T). The
+// chirp detector's timing under Doppler is checked against it in tests/plugins/chirp.
+TEST(Signals, DopplerTimingInstant) {
+  SignalSpec up;
+  up.type = "lfm", up.f0_hz = 2000, up.f1_hz = 8000, up.duration_s = 0.04;
+  EXPECT_NEAR(doppler_timing_instant_s(up, 44100.0), 0.04 * (2000 + 16000) / (3.0 * 10000), 1e-8);
+  SignalSpec down = up;
+  std::swap(down.f0_hz, down.f1_hz);
+  EXPECT_NEAR(doppler_timing_instant_s(down, 44100.0), 0.04 * 0.4, 1e-8);
+  up.fade_s = down.fade_s = 0.005;
+  const double iu = doppler_timing_instant_s(up, 44100.0), id = doppler_timing_instant_s(down, 44100.0);
+  EXPECT_NEAR(iu + id, 0.04, 1e-8);
+  EXPECT_LT(iu, 0.024);  // the fades weigh the ends less: closer to the middle than 0.6 T
+  EXPECT_GT(iu, 0.020);
+  SignalSpec tones;
+  tones.type = "multitone", tones.tones_hz = {1000, 2000}, tones.duration_s = 0.06, tones.fade_s = 0.01;
+  EXPECT_NEAR(doppler_timing_instant_s(tones, 44100.0), 0.03, 1e-8);
+  SignalSpec gold;
+  gold.type = "gold", gold.degree = 7, gold.index = 3, gold.carrier_hz = 19000, gold.chip_samples = 40;
+  EXPECT_NEAR(doppler_timing_instant_s(gold, 44100.0), 0.5 * 127 * 40 / 44100.0, 1e-12);
+  SignalSpec ble;
+  ble.type = "ble";
+  EXPECT_EQ(doppler_timing_instant_s(ble, 44100.0), 0.0);
+}

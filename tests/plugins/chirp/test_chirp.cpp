@@ -225,6 +225,39 @@ TEST(ChirpDetector, EnvelopeOnlyRefinementIsWorseThanPhaseAt18To22kHz) {
   EXPECT_LT(sq.rms, 0.5);
 }
 
+// The range-Doppler coupling of a chirp (dsp::doppler_timing_instant_s): a source whose range grows at
+// rdot is heard time-scaled, y(t) = s((t - tau0) / (1 + rdot/c)); the phase-timed detector reports the
+// start rdot/c * instant late, instant = 0.60 of TUM's up chirp and 0.40 of its down chirp (not the
+// envelope's f1/k: +6.9 and -1.7 samples per m/s). TUM's network solve corrects its arrivals by it.
+// Beyond ~1.1 m/s the envelope (which picks the carrier cycle) and the phase part by more than half a
+// carrier period and the cycle slips (at 1.5 m/s: +13.2 / -5.5 samples instead of +4.4 / +3.3): a
+// limit of the detector for fast movers (docs/tum.md, "Limits").
+TEST(ChirpDetector, DopplerCouplingIsTheSignalsTimingInstant) {
+  constexpr double kC = 343.0;
+  const dsp::SignalSpec down = lfm(8000, 2000, 0.040, 0.005);
+  for (const dsp::SignalSpec& spec : {kTum, down}) {
+    const double instant_s = dsp::doppler_timing_instant_s(spec, kFs);
+    for (double rdot : {-0.8, -0.3, 0.3, 0.8}) {
+      std::vector<Emission> ems = periodic(1, 4.0, 0.2, 11);
+      const double sigma = std::sqrt(chirp_power(spec) / std::pow(10.0, 3.0));  // 30 dB per sample
+      std::vector<std::vector<float>> x = render(1, static_cast<std::size_t>(4.0 * kFs), {spec}, {}, sigma, 5);
+      const dsp::SignalEvaluator ev(spec, kFs);
+      const double scale = 1.0 + rdot / kC;
+      for (const Emission& e : ems)
+        for (long long n = static_cast<long long>(e.start_frame); n < static_cast<long long>(e.start_frame + 0.05 * kFs); ++n)
+          x[0][static_cast<std::size_t>(n)] += static_cast<float>(ev.value((static_cast<double>(n) - e.start_frame) / kFs / scale));
+      Harness run(1, {{"f0_hz", spec.f0_hz}, {"f1_hz", spec.f1_hz}, {"duration_s", 0.04}, {"fade_s", 0.005}});
+      const Stats st = match(run.run(x, 1024), ems);
+      const double predicted = rdot / kC * instant_s * kFs;
+      std::printf("[ chirp    ] %.0f->%.0f Hz, rdot %+.1f m/s: mean error %+.3f samples, predicted %+.3f (instant %.4f s)\n",
+                  spec.f0_hz, spec.f1_hz, rdot, st.mean, predicted, instant_s);
+      EXPECT_EQ(st.missed, 0u);
+      EXPECT_NEAR(st.mean, predicted, 0.1) << spec.f0_hz << " Hz, " << rdot << " m/s";
+      if (std::abs(rdot) > 0.5) EXPECT_GT(std::abs(st.mean), 1.0) << "the coupling is there to be corrected";
+    }
+  }
+}
+
 TEST(ChirpDetector, LaterStrongerEchoDoesNotHideTheDirectPath) {
   // Direct path at amplitude 0.5, an echo twice as strong 1.2..4 ms later (0.4..1.4 m more path).
   std::mt19937_64 rng(3);

@@ -53,12 +53,12 @@ with tempfile.TemporaryDirectory(prefix='locus-tum-bound.') as tmp:
 
     # 1. The model against the independent truth arrivals (local samples per emission, device, mic).
     y = CA.load_scene(scene_dir)
-    truth_rows = CA.arrivals_from_geometry(scene_dir, y)  # (emission, emitter, device, mic, local sample)
+    truth_rows = CA.arrivals_from_geometry(scene_dir, y)  # (emission, emitter, device, mic, local sample, t, te)
     # back to true time through the scene's clocks (a skew of tens of ppm over the tones' gap is a
     # tenth of a sample), in samples
     clocks = y['truth']['clocks']
     by_em = {}
-    for em, src, dev, mic, samp in truth_rows:
+    for em, src, dev, mic, samp, *_ in truth_rows:
         ck = clocks[dev]
         t_true = (samp / scene.fs - float(ck['offset_s'])) / (1.0 + float(ck['skew_ppm']) * 1e-6)
         by_em.setdefault(em, {})[(src, dev, mic)] = t_true * scene.fs
