@@ -43,6 +43,15 @@ inline std::vector<Pose> layout(double m_height = 1.0, bool table = false) {
   };
 }
 
+/// A device's exchange with its geometry filled in (id, mics, speaker) and nothing heard yet.
+inline tum::DeviceExchange geometry_of(const Pose& d) {
+  tum::DeviceExchange e;
+  e.id = d.id;
+  e.mics = d.mics;
+  e.speaker = d.speaker;
+  return e;
+}
+
 /// One exchange: device 0 emits at t1, device 1 at t2 (true time); every device times both tones.
 inline std::vector<tum::DeviceExchange> exchange(const std::vector<Pose>& poses, double t1, double t2, double noise_s = 0.0,
                                           std::mt19937_64* rng = nullptr) {
@@ -51,10 +60,7 @@ inline std::vector<tum::DeviceExchange> exchange(const std::vector<Pose>& poses,
   const Vector3d n = poses[1].p + poses[1].q * poses[1].speaker;
   std::vector<tum::DeviceExchange> out;
   for (const Pose& d : poses) {
-    tum::DeviceExchange e;
-    e.id = d.id;
-    e.mics = d.mics;
-    e.speaker = d.speaker;
+    tum::DeviceExchange e = geometry_of(d);
     e.attitude = d.q;
     for (const Vector3d& mic : d.mics) {
       const Vector3d w = d.p + d.q * mic;
@@ -101,10 +107,7 @@ inline std::vector<tum::DeviceExchange> moving_exchange(const std::vector<Pose>&
   };
   std::vector<tum::DeviceExchange> out;
   for (const Pose& d : poses) {
-    tum::DeviceExchange e;
-    e.id = d.id;
-    e.mics = d.mics;
-    e.speaker = d.speaker;
+    tum::DeviceExchange e = geometry_of(d);
     double ref = 0.0;
     for (const Vector3d& mic : d.mics) {
       const double a1 = arrival(poses[0], t1, d, mic, &d == &poses[0] ? 0.0 : instant1_s);
