@@ -129,24 +129,26 @@ struct Problem {
   }
   /// v_cache from the origins in p through the stencils, limited to 3 x speed_mps (a start of the
   /// multi-start, or a formation being left, can string a track metres apart: taken at face value, its
-  /// velocity would move a tone's emitter by metres); v_scale: the factor applied (1 = none).
+  /// velocity would move a tone's emitter by metres).
   void velocities(const Eigen::VectorXd& p) const {
     const std::size_t K = m_k.size();
     v_cache.assign(static_cast<std::size_t>(n_dev) * K, Eigen::Vector3d::Zero());
-    v_scale.assign(static_cast<std::size_t>(n_dev) * K, 1.0);
     const double v_max = 3.0 * net.speed_mps;
     for (int d = 0; d < n_dev; ++d)
       for (std::size_t k = 0; k < K; ++k) {
         Eigen::Vector3d& v = v_cache[static_cast<std::size_t>(d) * K + k];
         for (const auto& [kj, coef] : stencil[static_cast<std::size_t>(d)][k])
           v += coef * p.segment<3>(x_index[d][static_cast<std::size_t>(kj)]);
-        if (v.norm() > v_max) {
-          v_scale[static_cast<std::size_t>(d) * K + k] = v_max / v.norm();
-          v *= v_max / v.norm();
-        }
+        if (v.norm() > v_max) v *= v_max / v.norm();
       }
   }
-  mutable std::vector<double> v_scale;  ///< [dev * K + k]
+  /// Velocity (device 1's frame) of a point `body` of device d at exchange k whose body rotation is r:
+  /// zero for device 1 (the frame, d < 0) and still devices; else the origin's (v_cache) plus the
+  /// gyro's spin of the lever arm, r (w x body).
+  Eigen::Vector3d point_velocity(int d, std::size_t k, const Eigen::Matrix3d& r, const Eigen::Vector3d& body) const {
+    if (!motion || d < 0 || still[d]) return Eigen::Vector3d::Zero();
+    return v_cache[static_cast<std::size_t>(d) * m_k.size() + k] + r * w_body[d][k].cross(body);
+  }
   /// Whitened residuals; equation residuals first (eqs order), then priors.
   void residuals(const Eigen::VectorXd& p, Eigen::VectorXd& r) const {
     r.resize(n_residuals());
@@ -162,12 +164,8 @@ struct Problem {
     for (std::size_t k = 0; k < K; ++k)
       if (x_index[dev2][k] >= 0)
         n_cache[k] = p.segment<3>(x_index[dev2][k]) + rot_cache[static_cast<std::size_t>(dev2) * K + k] * *speaker[dev2];
-    // Velocity (device 1's frame) of a point of device d's body at exchange k: zero for device 1 (the
-    // frame) and still devices; origin velocity plus the gyro's rotation of the lever arm otherwise.
-    auto point_velocity = [&](int d, std::size_t k, const Eigen::Vector3d& point) -> Eigen::Vector3d {
-      if (!motion || d < 0 || still[d]) return Eigen::Vector3d::Zero();
-      const std::size_t dk = static_cast<std::size_t>(d) * K + k;
-      return v_cache[dk] + rot_cache[dk] * w_body[d][k].cross(point);
+    auto point_vel = [&](int d, std::size_t k, const Eigen::Vector3d& body) {
+      return point_velocity(d, k, rot_cache[static_cast<std::size_t>(d) * K + k], body);
     };
     int i = 0;
     for (const Eq& e : eqs) {
@@ -175,7 +173,7 @@ struct Problem {
       const std::size_t k = static_cast<std::size_t>(e.k);
       // Receiver minus emitter at the instants of emission and arrival (w), and their velocities.
       Eigen::Vector3d w = Eigen::Vector3d::Zero(), v_rx = Eigen::Vector3d::Zero(), v_tx = Eigen::Vector3d::Zero();
-      if (e.kind != Kind::HearsM && motion) v_tx = point_velocity(dev2, k, *speaker[dev2]);
+      if (e.kind != Kind::HearsM && motion) v_tx = point_vel(dev2, k, *speaker[dev2]);
       const Eigen::Vector3d n_emitted = n_cache[k] + dt_n_s[k] * v_tx;
       switch (e.kind) {
         case Kind::OneHearsN:
@@ -183,12 +181,12 @@ struct Problem {
           v = w.norm() - p[rho_index[dev2][e.k]] - e.y;
           break;
         case Kind::HearsM:
-          v_rx = point_velocity(e.dev, k, e.point);
+          v_rx = point_vel(e.dev, k, e.point);
           w = x_of(e.dev, e.k, p) + rot_cache[static_cast<std::size_t>(e.dev) * K + k] * e.point - m_k[k];
           v = w.norm() + p[rho_index[e.dev][e.k]] - e.y;
           break;
         case Kind::HearsN:
-          v_rx = point_velocity(e.dev, k, e.point);
+          v_rx = point_vel(e.dev, k, e.point);
           w = x_of(e.dev, e.k, p) + rot_cache[static_cast<std::size_t>(e.dev) * K + k] * e.point + e.dt_rx_s * v_rx -
               n_emitted;
           v = w.norm() + p[rho_index[e.dev][e.k]] - p[rho_index[dev2][e.k]] - e.y;
@@ -246,13 +244,11 @@ void jacobian(const Problem& pr, const Eigen::VectorXd& p, Eigen::MatrixXd& jac)
     return Eigen::Vector3d(p.segment<3>(pr.x_index[d2][k]) + rot[static_cast<std::size_t>(d2) * K + k] * *pr.speaker[d2]);
   };
   int i = 0;
-  // Motion within an exchange (as in residuals): a point's velocity (the origins' part held fixed, see
-  // Problem::motion), and d residual / d velocity of device d's point `body` at exchange k = g (a row)
-  // through the rotation of the lever arm's spin (w x body) onto its heading offset.
-  auto point_velocity = [&](int d, std::size_t k, const Eigen::Vector3d& body) -> Eigen::Vector3d {
-    if (!pr.motion || d < 0 || pr.still[d]) return Eigen::Vector3d::Zero();
-    const std::size_t dk = static_cast<std::size_t>(d) * K + k;
-    return pr.v_cache[dk] + rot[dk] * pr.w_body[d][k].cross(body);
+  // Motion within an exchange (as in residuals; the origins' velocities are held fixed over a run,
+  // Problem::motion): a point's velocity, and the heading offset's part through the lever arm's spin
+  // (w x body) given d residual / d velocity of device d's point `body` at exchange k = g (a row).
+  auto point_velocity = [&](int d, std::size_t k, const Eigen::Vector3d& body) {
+    return d < 0 ? Eigen::Vector3d(Eigen::Vector3d::Zero()) : pr.point_velocity(d, k, rot[static_cast<std::size_t>(d) * K + k], body);
   };
   auto motion_terms = [&](int d, std::size_t k, const Eigen::Vector3d& body, const Eigen::Vector3d& g) {
     if (d < 0 || pr.still[d]) return;
@@ -288,7 +284,7 @@ void jacobian(const Problem& pr, const Eigen::VectorXd& p, Eigen::MatrixXd& jac)
           jac(i, pr.psi_index[d2]) -= inv * u.dot(drot[static_cast<std::size_t>(d2) * K + k] * *pr.speaker[d2]);
           jac(i, pr.rho_index[d2][k]) -= inv;
         }
-        if (pr.motion) {  // the velocities' origins: the receiver's motion and coupling, the emitter's
+        if (pr.motion) {  // the receiver's spin (its motion and coupling), the emitter's
           if (e.kind == Kind::HearsM) {
             motion_terms(e.dev, k, e.point, pr.instant_m_s * u);
           } else {
@@ -359,8 +355,7 @@ double solve_lm_pass(const Problem& pr, Eigen::VectorXd& p, const std::vector<bo
   Eigen::VectorXd jtr(m);
   Eigen::MatrixXd full;
   // Normal equations row by row over each row's non-zeros: an arrival touches at most two devices'
-  // origins, headings and clocks (with motion, their neighbouring origins too), a prior one or three
-  // parameters, so a dense J^T J (rows x params^2) did ~15x the work (perf: half of a window solve).
+  // origins, headings and clocks, a prior one or three parameters, so a dense J^T J (rows x params^2) did ~15x the work (perf: half of a window solve).
   std::vector<int> nz;
   auto build = [&] {
     jacobian(pr, p, full);
@@ -440,16 +435,6 @@ double solve_lm(const Problem& pr, Eigen::VectorXd& p, const std::vector<bool>& 
   return cost;
 }
 
-/// A device's reference instant in an exchange (its clock): the mean of its arrivals of device 1's
-/// tone, where its attitude and gyro rate were taken (messages.hpp); NaN when it heard none.
-double reference_time(const DeviceExchange& d) {
-  double sum = 0.0;
-  int n = 0;
-  for (double t : d.t1_s)
-    if (std::isfinite(t)) sum += t, ++n;
-  return n > 0 ? sum / n : std::numeric_limits<double>::quiet_NaN();
-}
-
 }  // namespace
 
 NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
@@ -525,7 +510,7 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
       if (d.moving) pr.still[di] = false;
       if (d.gyro_radps) pr.w_body[di][k] = *d.gyro_radps;
     }
-    const double ref2 = reference_time(e.devices[1]);
+    const double ref2 = reference_time_s(e.devices[1].t1_s);
     if (std::isfinite(ref2) && std::isfinite(e.t_n2)) pr.dt_n_s[static_cast<std::size_t>(k)] = e.t_n2 - ref2;
   }
   if (!pr.speaker[pr.dev2]) return out;
@@ -577,7 +562,7 @@ NetworkResult NetworkSolver::add(const std::vector<DeviceExchange>& devices) {
         if (j < o->t1_s.size() && std::isfinite(o->t1_s[j]))
           pr.eqs.push_back(Eq{Kind::HearsM, k, d, o->mics[j], c * (o->t1_s[j] - e.t_m1), sigma_for(o->mics[j])});
         if (d != pr.dev2 && obs[pr.dev2][k] && j < o->t2_s.size() && std::isfinite(o->t2_s[j])) {
-          const double ref = reference_time(*o);
+          const double ref = reference_time_s(o->t1_s);
           pr.eqs.push_back(Eq{Kind::HearsN, k, d, o->mics[j], c * (o->t2_s[j] - e.t_n2),
                               std::sqrt(2.0) * sigma_for(o->mics[j]), std::isfinite(ref) ? o->t2_s[j] - ref : 0.0});
         }

@@ -30,6 +30,14 @@ double lever_sigma(double timing_m, const Eigen::Vector3d& lever, double attitud
 
 }  // namespace
 
+double reference_time_s(const std::vector<double>& t1_s) {
+  double sum = 0.0;
+  int n = 0;
+  for (double t : t1_s)
+    if (std::isfinite(t)) sum += t, ++n;
+  return n > 0 ? sum / n : std::numeric_limits<double>::quiet_NaN();
+}
+
 double own_emission_time(const DeviceExchange& d, const std::vector<double>& t_own, double c) {
   if (!d.speaker) return kNaN;
   double s = 0.0;

@@ -72,6 +72,11 @@ struct ExchangeResult {
   std::vector<Placement> devices;  ///< device 1 (origin 0), device 2, monitors, in input order
 };
 
+/// A device's reference instant in an exchange (its clock): the mean of its arrivals of device 1's
+/// tone (`t1_s`, NaN = not heard), where its attitude and gyro rate are taken (messages.hpp) and the
+/// window solve places a moving device (network.hpp); NaN when it heard none.
+double reference_time_s(const std::vector<double>& t1_s);
+
 /// Mean over mics of (t - |mic - speaker| / c): the device's own emission time on its clock. NaN when
 /// it heard none of its own tone or has no speaker.
 double own_emission_time(const DeviceExchange& d, const std::vector<double>& t_own, double c);

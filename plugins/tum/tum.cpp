@@ -13,6 +13,7 @@
 
 #include "locus/dsp/signals.hpp"
 #include "locus/emitter.hpp"
+#include "locus/scene/pose.hpp"
 #include "messages.hpp"
 #include "network.hpp"
 #include "solver.hpp"
@@ -246,32 +247,30 @@ class TumLocalizer final : public Localizer {
     return h;
   }
 
-  /// The attitude at local time t: interpolated (normalised lerp, the shorter way) between the events
-  /// around it, else the nearest within 1 s; none when there is none.
+  /// The attitude at local time t: interpolated between the events around it (scene::bracket) when
+  /// they are less than 0.25 s apart, else the nearest within 1 s; none when
+  /// there is none. The attitude events of one device arrive in time order.
   std::optional<std::array<double, 4>> attitude_at(double t) const {
-    const AttitudeAt* before = nullptr;
-    const AttitudeAt* after = nullptr;
-    const AttitudeAt* nearest = nullptr;
-    for (const auto& a : attitudes_) {
-      if (a.t_s <= t && (!before || a.t_s > before->t_s)) before = &a;
-      if (a.t_s >= t && (!after || a.t_s < after->t_s)) after = &a;
-      if (!nearest || std::abs(a.t_s - t) < std::abs(nearest->t_s - t)) nearest = &a;
-    }
-    if (before && after && after->t_s - before->t_s < 0.25) {
-      const double u = after->t_s > before->t_s ? (t - before->t_s) / (after->t_s - before->t_s) : 0.0;
-      double dot = 0.0;
-      for (int i = 0; i < 4; ++i) dot += before->q[static_cast<std::size_t>(i)] * after->q[static_cast<std::size_t>(i)];
-      const double sgn = dot < 0.0 ? -1.0 : 1.0;
+    if (attitudes_.empty()) return std::nullopt;
+    const scene::TimeBracket b = scene::bracket(attitudes_.size(), t, [&](std::size_t i) { return attitudes_[i].t_s; });
+    const AttitudeAt& lo = attitudes_[b.lo];
+    const AttitudeAt& hi = attitudes_[b.hi];
+    if (b.hi != b.lo && hi.t_s - lo.t_s < 0.25) {
+      // Normalised lerp, the shorter way. Eigen's slerp (scene::interpolate_attitude) differs by
+      // ~1e-6 rad over 50 ms, and yet moved ellipse seed 6 into a wrong formation (docs/tum.md
+      // "Limits": some seeds' basin choice is that fragile), so the measured figures keep this one.
+      const double sgn = (lo.q[0] * hi.q[0] + lo.q[1] * hi.q[1] + lo.q[2] * hi.q[2] + lo.q[3] * hi.q[3]) < 0.0 ? -1.0 : 1.0;
       std::array<double, 4> q{};
       double n2 = 0.0;
       for (std::size_t i = 0; i < 4; ++i) {
-        q[i] = (1.0 - u) * before->q[i] + u * sgn * after->q[i];
+        q[i] = (1.0 - b.u) * lo.q[i] + b.u * sgn * hi.q[i];
         n2 += q[i] * q[i];
       }
       for (double& v : q) v /= std::sqrt(n2);
       return q;
     }
-    if (nearest && std::abs(nearest->t_s - t) < 1.0) return nearest->q;
+    const AttitudeAt& nearest = std::abs(lo.t_s - t) <= std::abs(hi.t_s - t) ? lo : hi;
+    if (std::abs(nearest.t_s - t) < 1.0) return nearest.q;
     return std::nullopt;
   }
 
@@ -314,11 +313,8 @@ class TumLocalizer final : public Localizer {
       }
       // The exchange's reference instant: this device's hearing of device 1's tone (the window solve
       // places a moving device there and corrects its other arrivals by its motion, network.hpp).
-      double ref = 0.0;
-      int n_ref = 0;
-      for (double t : m.t1_s)
-        if (std::isfinite(t)) ref += t, ++n_ref;
-      ref = n_ref > 0 ? ref / n_ref : start;
+      double ref = reference_time_s(m.t1_s);
+      if (!std::isfinite(ref)) ref = start;
       m.q_wxyz = attitude_at(ref);
       m.gyro_radps = gyro_at(ref);
       // Moving: the gyro saw rotation since the previous exchange (or in the last second).
