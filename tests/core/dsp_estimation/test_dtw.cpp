@@ -83,7 +83,9 @@ TEST(Dtw, LbKeoghIsALowerBoundAndEarlyAbandonIsExact) {
     if (std::isinf(ab)) ++pruned;
     EXPECT_NEAR(dtw.distance(c, q, w, 2 * d + 1), d, 1e-9);
     // LB_Keogh's own abandoning returns a value above the bound whenever the full bound is.
-    if (lb > 0.1) EXPECT_GT(lb_keogh(c, up, lo, DtwCost::Squared, 0.5 * lb), 0.5 * lb);
+    if (lb > 0.1) {
+      EXPECT_GT(lb_keogh(c, up, lo, DtwCost::Squared, 0.5 * lb), 0.5 * lb);
+    }
   }
   EXPECT_GT(pruned, 0);
 }

@@ -419,7 +419,10 @@ INSTANTIATE_TEST_SUITE_P(
 // ------------------------------------------------------------------ components that cannot start
 
 TEST_F(LiveTest, WrongMqttPasswordStopsTheStartNamingTheBroker) {
-  Broker broker(dir(), {"board", "right"});
+  Broker::Options auth;
+  auth.username = "board";
+  auth.password = "right";
+  Broker broker(dir(), auth);
   broker.start();
   const std::string p = std::to_string(broker.port());
   const fs::path cfg = config("node.yaml",

@@ -266,7 +266,7 @@ TEST(AmilBound, MonteCarloSpreadMatchesCramerRaoAndReportedStd) {
   auto cfg = config(amil::Method::Joint);
   cfg.timing_std_s = sigma_t;
   cfg.position_std_m = 0.0;
-  for (const Eigen::Vector2d x : {Eigen::Vector2d(0.0, 1.22), Eigen::Vector2d(-1.22, 2.44)}) {
+  for (const Eigen::Vector2d& x : {Eigen::Vector2d(0.0, 1.22), Eigen::Vector2d(-1.22, 2.44)}) {
     const auto bound = amil::cramer_rao(pos, times, x, 25e-6, sigma_t, 0.0, kC);
     ASSERT_TRUE(std::isfinite(bound.std_m));
     double sum2 = 0, reported = 0;

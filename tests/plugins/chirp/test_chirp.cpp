@@ -253,7 +253,9 @@ TEST(ChirpDetector, DopplerCouplingIsTheSignalsTimingInstant) {
                   spec.f0_hz, spec.f1_hz, rdot, st.mean, predicted, instant_s);
       EXPECT_EQ(st.missed, 0u);
       EXPECT_NEAR(st.mean, predicted, 0.1) << spec.f0_hz << " Hz, " << rdot << " m/s";
-      if (std::abs(rdot) > 0.5) EXPECT_GT(std::abs(st.mean), 1.0) << "the coupling is there to be corrected";
+      if (std::abs(rdot) > 0.5) {
+        EXPECT_GT(std::abs(st.mean), 1.0) << "the coupling is there to be corrected";
+      }
     }
   }
 }
