@@ -196,6 +196,7 @@ class MultitoneDetector final : public Detector {
     paths_opt_.tolerance = params.get_float("path_tolerance");
     paths_opt_.back = std::round(params.get_float("path_search_s") * fs_);
     carrier_phase_ = params.get_bool("carrier_phase");
+    paths_opt_.known_phase_cycle = params.get_string("cycle_choice") == "known_phase";
     doppler_ = params.get_bool("doppler");
 
     bank_ = dsp::GoertzelBank(tones_, fs_);
@@ -970,6 +971,10 @@ const ParamSchema& schema() {
                  "Multipath fit with the beep's time scale (Doppler) measured on its body (tone phase advance)."),
       bool_param("carrier_phase", true,
                  "First path from the carrier phase of its fitted amplitude (the cycle nearest the envelope fit; fit_phase free)."),
+      enum_param("cycle_choice", "known_phase", {"known_phase", "envelope"},
+                 "With carrier_phase: the carrier cycle of the first path. `envelope` = the cycle nearest the free-phase "
+                 "envelope fit; `known_phase` = the cycle (0, ±1, ±2 periods from it) whose fit with the first path at the "
+                 "format's own phase, the echoes free, explains most energy (tools/scripts/spyloc_bound.py)."),
       float_param("path_tolerance", 0.02, 0.0, 0.5, "",
                   "... plus this fraction of the window's energy (model mismatch: Doppler, device response)."),
   };

@@ -48,7 +48,8 @@ std::vector<float> input(bool gold) {
   return x;
 }
 
-void run(benchmark::State& state, const locus_plugin_descriptor* desc, const locus::ParamSchema& schema, bool gold) {
+void run(benchmark::State& state, const locus_plugin_descriptor* desc, const locus::ParamSchema& schema, bool gold,
+         const char* cycle_choice = nullptr) {
   locus::test::TestHost host;
   locus::FftwPlanner fftw({}, true);
   locus::HostContext ctx{host.log, host.clock, fftw, host.link, "bench", "A"};
@@ -57,7 +58,9 @@ void run(benchmark::State& state, const locus_plugin_descriptor* desc, const loc
   info.device = locus::DeviceId("A");
   info.sample_rate_hz = kFs;
   info.max_block_frames = 1024;
-  d->configure(info, locus::Params::defaults(schema), ctx);
+  locus::Params params = locus::Params::defaults(schema);
+  if (cycle_choice != nullptr) params.set("cycle_choice", std::string(cycle_choice));
+  d->configure(info, params, ctx);
   const std::vector<float> x = input(gold);
   locus::test::CollectingSink sink;
   std::uint64_t frame = 0;
@@ -161,12 +164,18 @@ void BM_GoldcodeMontageDeviceRoundGate(benchmark::State& s) { montage_device(s, 
 void BM_GoldcodeMontageDeviceNoDoppler(benchmark::State& s) { montage_device(s, false, false); }
 void BM_Goldcode4Codes(benchmark::State& s) { run(s, locus::plugins::goldcode::descriptor(), locus::plugins::goldcode::schema(), true); }
 void BM_Multitone10Tones(benchmark::State& s) { run(s, locus::plugins::multitone::descriptor(), locus::plugins::multitone::schema(), false); }
+// The same with the carrier cycle from the envelope alone (cycle_choice: envelope): the cost of the
+// known-phase cycle choice, measured in the same run.
+void BM_Multitone10TonesEnvelopeCycle(benchmark::State& s) {
+  run(s, locus::plugins::multitone::descriptor(), locus::plugins::multitone::schema(), false, "envelope");
+}
 
 BENCHMARK(BM_Goldcode4Codes)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK(BM_GoldcodeMontageDevice)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK(BM_GoldcodeMontageDeviceRoundGate)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK(BM_GoldcodeMontageDeviceNoDoppler)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK(BM_Multitone10Tones)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+BENCHMARK(BM_Multitone10TonesEnvelopeCycle)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 }  // namespace
 

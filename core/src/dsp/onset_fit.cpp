@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "locus/dsp/peak.hpp"
+#include "locus/numbers.hpp"
 
 namespace locus::dsp {
 
@@ -59,28 +60,20 @@ void OnsetPathsFit::reserve(std::size_t max_window) {
 // samples after its start).
 std::int64_t OnsetPathsFit::scan_add(const std::int64_t* tau8, std::size_t p, std::int64_t lo8, std::int64_t hi8,
                                      std::int64_t step8, std::int64_t sep8, double& best_e) noexcept {
-  const std::size_t m = known_ ? 1 : 2, df = m * p, d = df + m;
+  const std::size_t m = known_ ? 1 : 2;
+  std::size_t df = 0;
   const auto os = static_cast<std::int64_t>(os_);
   std::array<double, kMaxDim * kMaxDim> gf{};
   std::array<double, kMaxDim> rf{};
   for (std::size_t n = 0; n < n_; ++n) {
     double* v = &fixed_[n * kMaxDim];
-    for (std::size_t q = 0; q < p; ++q) {
-      std::int64_t u = static_cast<std::int64_t>(n) * os - tau8[q];
-      if (scaled_) u = scaled(u);
-      const bool in = u >= 0 && static_cast<std::size_t>(u) < fine_n_;
-      if (known_) {
-        v[q] = in ? s_[u] : 0.0;
-      } else {
-        v[2 * q] = in ? c_[u] : 0.0;
-        v[2 * q + 1] = in ? s_[u] : 0.0;
-      }
-    }
+    df = columns(tau8, p, n, v, nullptr);
     for (std::size_t i = 0; i < df; ++i) {
       rf[i] += y_[n] * v[i];
       for (std::size_t j = 0; j <= i; ++j) gf[i * kMaxDim + j] += v[i] * v[j];
     }
   }
+  const std::size_t d = df + m;
   std::int64_t best = -1;
   best_e = -1.0;
   for (std::int64_t t = lo8; t <= hi8; t += step8) {
@@ -138,8 +131,32 @@ std::int64_t OnsetPathsFit::scan_add(const std::int64_t* tau8, std::size_t p, st
   return best;
 }
 
+std::size_t OnsetPathsFit::columns(const std::int64_t* tau8, std::size_t p, std::size_t n, double* v,
+                                   bool* any) const noexcept {
+  const auto os = static_cast<std::int64_t>(os_);
+  std::size_t col = 0;
+  for (std::size_t q = 0; q < p; ++q) {
+    std::int64_t u = static_cast<std::int64_t>(n) * os - tau8[q];
+    if (scaled_) u = scaled(u);  // Doppler: the waveform's time axis
+    const bool in = u >= 0 && static_cast<std::size_t>(u) < fine_n_;
+    if (any != nullptr) *any |= in;
+    if (q == kp_) {
+      v[col++] = in ? kp_cos_ * s_[u] - kp_sin_ * c_[u] : 0.0;
+    } else if (known_) {
+      v[col++] = in ? s_[u] : 0.0;
+    } else {
+      v[col++] = in ? c_[u] : 0.0;
+      v[col++] = in ? s_[u] : 0.0;
+    }
+  }
+  return col;
+}
+
 double OnsetPathsFit::explained(const std::int64_t* tau8, std::size_t p, double* coef) const noexcept {
-  const std::size_t m = known_ ? 1 : 2, d = m * p;
+  // Columns: one per path with a known phase (the sine part; the path kp_ rotated by its sub-grid
+  // delay), two (cos, sin) per free path.
+  std::size_t d = 0;
+  for (std::size_t q = 0; q < p; ++q) d += (known_ || q == kp_) ? 1 : 2;
   std::array<double, kMaxDim * kMaxDim> g{};
   std::array<double, kMaxDim> r{};
   std::array<double, kMaxDim> v{};
@@ -149,18 +166,7 @@ double OnsetPathsFit::explained(const std::int64_t* tau8, std::size_t p, double*
   const std::size_t n0 = lo <= 0 ? 0 : static_cast<std::size_t>(lo / os);
   for (std::size_t n = n0; n < n_; ++n) {
     bool any = false;
-    for (std::size_t q = 0; q < p; ++q) {
-      std::int64_t u = static_cast<std::int64_t>(n) * os - tau8[q];
-      if (scaled_) u = scaled(u);  // Doppler: the waveform's time axis
-      const bool in = u >= 0 && static_cast<std::size_t>(u) < fine_n_;
-      any |= in;
-      if (known_) {
-        v[q] = in ? s_[u] : 0.0;
-      } else {
-        v[2 * q] = in ? c_[u] : 0.0;
-        v[2 * q + 1] = in ? s_[u] : 0.0;
-      }
-    }
+    columns(tau8, p, n, v.data(), &any);
     if (!any) continue;
     const double yn = y_[n];
     for (std::size_t i = 0; i < d; ++i) {
@@ -172,6 +178,29 @@ double OnsetPathsFit::explained(const std::int64_t* tau8, std::size_t p, double*
   const double e = solve_explained(g, r, d, x.data());
   if (coef != nullptr) std::copy(x.begin(), x.begin() + static_cast<std::ptrdiff_t>(d), coef);
   return e;
+}
+
+double OnsetPathsFit::choose_cycle(std::int64_t* tau8, std::size_t p, std::size_t first, double delay,
+                                   double carrier_rad) noexcept {
+  const double os = static_cast<double>(os_), period = 2.0 * kPi / carrier_rad;
+  const std::int64_t keep = tau8[first];
+  double best_e = -1.0, best = delay;
+  for (int m = -2; m <= 2; ++m) {
+    const double cand = delay + m * period;
+    if (cand < 0.0 || cand >= static_cast<double>(n_)) continue;
+    // The candidate on the 1/os grid, its remainder as a carrier rotation of the templates: a copy
+    // delayed by e more is ≈ cos(ω e)·s − sin(ω e)·c (the envelope moves by < 1/os sample).
+    tau8[first] = std::llround(cand * os);
+    const double rem = cand - static_cast<double>(tau8[first]) / os;
+    kp_ = first;
+    kp_cos_ = std::cos(carrier_rad * rem);
+    kp_sin_ = std::sin(carrier_rad * rem);
+    const double e = explained(tau8, p, nullptr);
+    if (e > best_e) best_e = e, best = cand;
+  }
+  kp_ = kMaxPaths;
+  tau8[first] = keep;
+  return best;
 }
 
 std::int64_t OnsetPathsFit::refine(std::int64_t* tau8, std::size_t p, std::size_t which, std::int64_t range8,
@@ -303,6 +332,22 @@ OnsetPathsFit::Result OnsetPathsFit::fit(const float* y, std::size_t n, const fl
     explained(tau.data(), p, coef.data());
     res.first = static_cast<double>(tf) / static_cast<double>(os) +
                 phase_refine_near(coef[2 * first + 1], coef[2 * first], o.carrier_rad, off / static_cast<double>(os));
+    if (o.known_phase_cycle) {
+      // The echoes of the fit, and more found on the noise threshold alone: an echo left out of the
+      // model leans on the first path's envelope, which is what picks the cycle.
+      std::array<std::int64_t, kMaxPaths> more = tau;
+      std::size_t pm = p;
+      double em = res.explained;
+      const double thr_noise = o.threshold * std::max(noise_var, 0.0);
+      while (pm < std::min(kMaxPaths, o.cycle_paths)) {  // echoes come after the first path
+        double be = -1.0;
+        const std::int64_t t = scan_add(more.data(), pm, tau[first] + sep8, hi8, step8, sep8, be);
+        if (t < 0 || be - em < thr_noise) break;
+        more[pm++] = t;
+        em = be;
+      }
+      res.first = choose_cycle(more.data(), pm, first, res.first, o.carrier_rad);
+    }
   }
   res.first_amplitude = amp[first];
   res.confidence = need > 0.0 ? std::clamp(1.0 - thr / need, 0.0, 1.0) : 0.0;

@@ -46,7 +46,7 @@ namespace locus::dsp {
 
 class OnsetPathsFit {
  public:
-  static constexpr std::size_t kMaxPaths = 3;
+  static constexpr std::size_t kMaxPaths = 5;
 
   struct Options {
     std::size_t oversample = 8;     ///< template table points per sample (the 1/kOs delay grid)
@@ -62,6 +62,11 @@ class OnsetPathsFit {
                                     ///< (1 + radial speed / c, > 1 approaching), e.g. from the beep body
     double carrier_rad = 0.0;       ///< > 0: the first path's delay from its carrier phase (rad/sample:
                                     ///< the waveform's centroid), the cycle nearest its envelope delay
+    bool known_phase_cycle = false; ///< with carrier_rad: the cycle chosen instead by the fit with the
+                                    ///< first path's phase known (the waveform's own), the others free:
+                                    ///< the candidates 0, ±1, ±2 carrier periods from the carrier-refined
+                                    ///< delay, the one whose model explains most energy
+    std::size_t cycle_paths = 4;    ///< ... with more echoes added on the noise threshold, up to this many paths
   };
 
   struct Result {
@@ -102,6 +107,12 @@ class OnsetPathsFit {
   // The window (copied), templates and options of one call.
   void bind(const float* y, std::size_t n, const float* c, const float* s, std::size_t fine_n, const Options& o,
             double time_scale) noexcept;
+  // The carrier cycle of the first path (delay: its carrier-refined delay, window samples) by the
+  // known-phase fit; tau8 restored.
+  double choose_cycle(std::int64_t* tau8, std::size_t p, std::size_t first, double delay, double carrier_rad) noexcept;
+  // The columns of the paths at tau8[0..p) for window sample n into v (returns how many; any: a path
+  // is on at n).
+  std::size_t columns(const std::int64_t* tau8, std::size_t p, std::size_t n, double* v, bool* any) const noexcept;
   std::int64_t scan_add(const std::int64_t* tau8, std::size_t p, std::int64_t lo8, std::int64_t hi8, std::int64_t step8,
                         std::int64_t sep8, double& best_e) noexcept;
 
@@ -120,6 +131,8 @@ class OnsetPathsFit {
   bool scaled_ = false;
   std::int64_t sep8_ = 0;  // min_separation in 1/oversample units (refinements keep it too)
   double scale_ = 1.0;
+  std::size_t kp_ = kMaxPaths;  // the path given a known phase in explained() (kMaxPaths: none)
+  double kp_cos_ = 1.0, kp_sin_ = 0.0;  // ... rotated by its sub-grid delay
 };
 
 }  // namespace locus::dsp
