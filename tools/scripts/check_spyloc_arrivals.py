@@ -42,7 +42,6 @@ Needs python3-numpy, python3-yaml and python3-scipy (the audio's length).
 import argparse
 import csv
 import json
-import math
 import os
 import sys
 
@@ -77,25 +76,44 @@ def beeps_from_extra(scene_dir):
     return out
 
 
-def beeps_from_geometry(scene_dir, scene, device):
-    fs = float(scene['sample_rate'])
-    c = float(scene.get('speed_of_sound', 343.0))
-    ck = scene['truth']['clocks'].get(device, {'offset_s': 0.0, 'skew_ppm': 0.0})
+def read_scene(scene_dir):
+    """scene.yaml as a dict, with its sample rate, speed of sound and room size (None when absent)."""
+    with open(os.path.join(scene_dir, 'scene.yaml')) as f:
+        scene = yaml.safe_load(f)
+    room = (scene.get('environment') or {}).get('room')
+    return scene, float(scene['sample_rate']), float(scene.get('speed_of_sound', 343.0)), \
+        (np.array(room, float) if room else None)
+
+
+def load_trajectories(scene_dir, scene):
+    """The truth's trajectories: id -> array of rows (t, x, y, z, qw, qx, qy, qz)."""
     traj = {}
     with open(os.path.join(scene_dir, scene['truth'].get('trajectories', 'truth.csv'))) as f:
         for row in csv.DictReader(f):
             traj.setdefault(row['id'], []).append([float(row[k]) for k in 't x y z qw qx qy qz'.split()])
-    traj = {k: np.array(v) for k, v in traj.items()}
+    return {k: np.array(v) for k, v in traj.items()}
+
+
+def pose_at(traj, i, t):
+    """Position and attitude of `i` at true time t (linear, normalised quaternion lerp)."""
+    a = traj[i]
+    if len(a) == 1:
+        return a[0, 1:4], a[0, 4:8]
+    j = min(max(int(np.searchsorted(a[:, 0], t)), 1), len(a) - 1)
+    u = (t - a[j - 1, 0]) / (a[j, 0] - a[j - 1, 0])
+    p = a[j - 1, 1:4] + u * (a[j, 1:4] - a[j - 1, 1:4])
+    q = a[j - 1, 4:8] + u * (a[j, 4:8] - a[j - 1, 4:8])
+    return p, q / np.linalg.norm(q)
+
+
+def beeps_from_geometry(scene_dir, scene, device):
+    fs = float(scene['sample_rate'])
+    c = float(scene.get('speed_of_sound', 343.0))
+    ck = scene['truth']['clocks'].get(device, {'offset_s': 0.0, 'skew_ppm': 0.0})
+    traj = load_trajectories(scene_dir, scene)
 
     def pose(i, t):
-        a = traj[i]
-        if len(a) == 1:
-            return a[0, 1:4], a[0, 4:8]
-        j = min(max(int(np.searchsorted(a[:, 0], t)), 1), len(a) - 1)
-        u = (t - a[j - 1, 0]) / (a[j, 0] - a[j - 1, 0])
-        p = a[j - 1, 1:4] + u * (a[j, 1:4] - a[j - 1, 1:4])
-        q = a[j - 1, 4:8] + u * (a[j, 4:8] - a[j - 1, 4:8])
-        return p, q / np.linalg.norm(q)
+        return pose_at(traj, i, t)
 
     dev = next(d for d in scene['devices'] if d['id'] == device)
     mic = np.array(dev['mics'][0], float)

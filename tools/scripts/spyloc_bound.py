@@ -46,7 +46,6 @@ import os
 import sys
 
 import numpy as np
-import yaml
 from scipy.io import wavfile
 from scipy.signal import butter, sosfiltfilt
 from scipy.special import erfc
@@ -120,40 +119,15 @@ def image_delays_m(src, rcv, room, order):
     return sorted(out)
 
 
-def load_traj(scene_dir, scene):
-    import csv
-    traj = {}
-    with open(os.path.join(scene_dir, scene['truth'].get('trajectories', 'truth.csv'))) as f:
-        for row in csv.DictReader(f):
-            traj.setdefault(row['id'], []).append([float(row[k]) for k in 't x y z qw qx qy qz'.split()])
-    return {k: np.array(v) for k, v in traj.items()}
-
-
-def pose(traj, i, t):
-    a = traj[i]
-    if len(a) == 1:
-        return a[0, 1:4], a[0, 4:8]
-    j = min(max(int(np.searchsorted(a[:, 0], t)), 1), len(a) - 1)
-    u = (t - a[j - 1, 0]) / (a[j, 0] - a[j - 1, 0])
-    p = a[j - 1, 1:4] + u * (a[j, 1:4] - a[j - 1, 1:4])
-    q = a[j - 1, 4:8] + u * (a[j, 4:8] - a[j - 1, 4:8])
-    return p, q / np.linalg.norm(q)
-
-
 def scene_bound(scene_dir, args):
-    with open(os.path.join(scene_dir, 'scene.yaml')) as f:
-        scene = yaml.safe_load(f)
-    fs = float(scene['sample_rate'])
-    c = float(scene.get('speed_of_sound', 343.0))
-    room = scene.get('environment', {}).get('room')
-    if not room:
+    scene, fs, c, room = arrivals.read_scene(scene_dir)
+    if room is None:
         sys.exit(f'{scene_dir}/scene.yaml: environment.room: expected the room size [x, y, z] (m)')
-    room = np.array(room, float)
     dev = scene['devices'][0]
     device = dev['id']
     mic_body = np.array(dev['mics'][0], float)
     ck = scene['truth']['clocks'].get(device, {'offset_s': 0.0, 'skew_ppm': 0.0})
-    traj = load_traj(scene_dir, scene)
+    traj = arrivals.load_trajectories(scene_dir, scene)
     beeps = arrivals.beeps_from_extra(scene_dir) or arrivals.beeps_from_geometry(scene_dir, scene, device)
     emitters = {e['id']: e for e in scene.get('emitters', [])}
     rate, audio = wavfile.read(os.path.join(scene_dir, dev['audio']), mmap=True)
@@ -187,16 +161,16 @@ def scene_bound(scene_dir, args):
             continue
         # the geometry at the arrival: receiver from the truth (true time from the local clock)
         t_true = (tau0 / fs - float(ck['offset_s'])) / (1.0 + float(ck['skew_ppm']) * 1e-6)
-        pm, qm = pose(traj, device, t_true)
+        pm, qm = arrivals.pose_at(traj, device, t_true)
         rcv = pm + arrivals.quat_rot(qm, mic_body)
         if 'anchor' in e and e['anchor'] and 'position' in e['anchor']:
             src = np.array(e['anchor']['position'], float)
         else:
-            src, _ = pose(traj, src_id, t_true - 0.02)
+            src, _ = arrivals.pose_at(traj, src_id, t_true - 0.02)
         d0 = float(np.linalg.norm(rcv - src))
         # the walker's radial speed: the received beep is time-scaled by 1 - rdot/c
-        pa, qa = pose(traj, device, t_true + 0.02)
-        pb, qb = pose(traj, device, t_true - 0.02)
+        pa, qa = arrivals.pose_at(traj, device, t_true + 0.02)
+        pb, qb = arrivals.pose_at(traj, device, t_true - 0.02)
         rdot = (np.linalg.norm(pa + arrivals.quat_rot(qa, mic_body) - src)
                 - np.linalg.norm(pb + arrivals.quat_rot(qb, mic_body) - src)) / 0.04
         tpl = Template(spec, fs, 1.0 - rdot / c)

@@ -27,19 +27,14 @@ import sys
 import tempfile
 
 import numpy as np
-import yaml
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import check_spyloc_arrivals as C  # noqa: E402  (its truth and event reading)
 
 
 def rows_of(scene_dir, det_path):
-    with open(os.path.join(scene_dir, 'scene.yaml')) as f:
-        scene = yaml.safe_load(f)
-    fs = float(scene['sample_rate'])
-    c = float(scene.get('speed_of_sound', 343.0))
-    room = scene.get('environment', {}).get('room')
-    if not room:
+    scene, fs, c, room = C.read_scene(scene_dir)
+    if room is None:
         sys.exit(f'{scene_dir}/scene.yaml: environment.room is missing (needed for the image delays)')
     height = float(room[2])
     device = next(d['id'] for d in scene['devices'] if d.get('audio'))
