@@ -2,6 +2,7 @@
 #include "multitone.hpp"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <complex>
@@ -191,6 +192,7 @@ class MultitoneDetector final : public Detector {
     fit_len_ = static_cast<std::size_t>(std::llround(params.get_float("fit_window_s") * fs_));
     paths_opt_ = dsp::OnsetPathsFit::Options{};
     paths_opt_.oversample = kOs;
+    paths_opt_.scan_step = params.get_float("path_scan_samples");
     paths_opt_.max_paths = static_cast<std::size_t>(params.get_int("max_paths"));
     paths_opt_.threshold = std::pow(10.0, params.get_float("path_threshold_db") / 10.0);
     paths_opt_.tolerance = params.get_float("path_tolerance");
@@ -276,6 +278,13 @@ class MultitoneDetector final : public Detector {
     stat_.assign(nfft_, 0.0);
     sorted_.assign(nfft_, 0.0);
     mt_s_.assign(fine_n_, 0.0f);
+    ph_stride_ = (fine_n_ + kOs - 1) / kOs;
+    for (std::size_t r = 0; r < kOs; ++r) ph_len_[r] = r < fine_n_ ? (fine_n_ - r + kOs - 1) / kOs : 0;
+    ph_s_.assign(kOs * ph_stride_, 0.0f);
+    ph_c_.assign(kOs * ph_stride_, 0.0f);
+    ph_ss_.assign(kOs * (ph_stride_ + 1), 0.0);
+    ph_cc_.assign(kOs * (ph_stride_ + 1), 0.0);
+    ph_sc_.assign(kOs * (ph_stride_ + 1), 0.0);
     mt_c_.assign(fine_n_, 0.0f);
     win_y_.assign(fit_len_ + 2 * pre_ + 2 * onset_len_ + 64, 0.0f);
     // Multipath window: back samples before the single-path estimate (and pre_ more), fit_len_ after.
@@ -619,20 +628,42 @@ class MultitoneDetector final : public Detector {
 
   // [RT] Projected energy of the window win_y_[0..nw) onto the onset model starting at offset
   // `tau8` (in 1/kOs samples from the window start); amplitude estimate in `amp`.
+  // The template is read by phase (ph_s_/ph_c_: for phase r, its points r, r + kOs, ...), contiguous,
+  // and its energies over a range come from the prefix sums ph_ss_/ph_cc_/ph_sc_: the loop is two
+  // products per sample.
   double fit_energy(std::size_t nw, std::int64_t tau8, double& amp) const noexcept {
-    double ys = 0.0, yc = 0.0, ss = 0.0, cc = 0.0, sc = 0.0;
-    for (std::size_t n = 0; n < nw; ++n) {
-      const std::int64_t u = static_cast<std::int64_t>(n * kOs) - tau8;
-      if (u < 0) continue;
-      if (static_cast<std::size_t>(u) >= fine_n_) break;
-      const double s = mt_s_[static_cast<std::size_t>(u)], c = mt_c_[static_cast<std::size_t>(u)];
-      const double y = win_y_[n];
-      ys += y * s;
-      yc += y * c;
-      ss += s * s;
-      cc += c * c;
-      sc += s * c;
+    // Window sample n meets template point u = n·kOs − tau8 (from the first n with u >= 0).
+    const auto k8 = static_cast<std::int64_t>(kOs);
+    const std::int64_t n0 = tau8 <= 0 ? 0 : (tau8 + k8 - 1) / k8;
+    const std::int64_t u0 = n0 * k8 - tau8;
+    const auto r = static_cast<std::size_t>(u0 % k8), j0 = static_cast<std::size_t>(u0 / k8);
+    const std::size_t per = ph_len_[r];
+    if (static_cast<std::size_t>(n0) >= nw || j0 >= per) {
+      amp = 0.0;
+      return 0.0;
     }
+    const std::size_t count = std::min(nw - static_cast<std::size_t>(n0), per - j0);
+    const float* ps = &ph_s_[r * ph_stride_ + j0];
+    const float* pc = &ph_c_[r * ph_stride_ + j0];
+    const float* py = &win_y_[static_cast<std::size_t>(n0)];
+    // Four partial sums each: the additions' latency, not the products, bounds one chain.
+    double ys4[4] = {0.0, 0.0, 0.0, 0.0}, yc4[4] = {0.0, 0.0, 0.0, 0.0};
+    std::size_t i = 0;
+    for (; i + 4 <= count; i += 4)
+      for (std::size_t k = 0; k < 4; ++k) {
+        const double y = py[i + k];
+        ys4[k] += y * ps[i + k];
+        yc4[k] += y * pc[i + k];
+      }
+    for (; i < count; ++i) {
+      ys4[0] += static_cast<double>(py[i]) * ps[i];
+      yc4[0] += static_cast<double>(py[i]) * pc[i];
+    }
+    const double ys = (ys4[0] + ys4[1]) + (ys4[2] + ys4[3]), yc = (yc4[0] + yc4[1]) + (yc4[2] + yc4[3]);
+    const std::size_t base = r * (ph_stride_ + 1);
+    const double ss = ph_ss_[base + j0 + count] - ph_ss_[base + j0];
+    const double cc = ph_cc_[base + j0 + count] - ph_cc_[base + j0];
+    const double sc = ph_sc_[base + j0 + count] - ph_sc_[base + j0];
     if (coherent_) {  // known carrier phase: one real amplitude (sign free)
       amp = ss > 1e-30 ? std::fabs(ys) / ss : 0.0;
       return ss > 1e-30 ? ys * ys / ss : 0.0;
@@ -724,6 +755,23 @@ class MultitoneDetector final : public Detector {
       for (std::size_t i = 0; i < fine_n_; ++i) {
         mt_s_[i] += fine_s_[k * fine_n_ + i];
         mt_c_[i] += fine_c_[k * fine_n_ + i];
+      }
+    }
+    // ... by phase, with the prefix sums of their energies (fit_energy).
+    for (std::size_t r = 0; r < kOs; ++r) {
+      const std::size_t b = r * (ph_stride_ + 1);
+      double ss = 0.0, cc = 0.0, sc = 0.0;
+      ph_ss_[b] = ph_cc_[b] = ph_sc_[b] = 0.0;
+      for (std::size_t j = 0; j < ph_len_[r]; ++j) {
+        const double sv = mt_s_[r + j * kOs], cv = mt_c_[r + j * kOs];
+        ph_s_[r * ph_stride_ + j] = static_cast<float>(sv);
+        ph_c_[r * ph_stride_ + j] = static_cast<float>(cv);
+        ss += sv * sv;
+        cc += cv * cv;
+        sc += sv * cv;
+        ph_ss_[b + j + 1] = ss;
+        ph_cc_[b + j + 1] = cc;
+        ph_sc_[b + j + 1] = sc;
       }
     }
     double centre = static_cast<double>(seg0) + static_cast<double>(edge);  // absolute frame estimate
@@ -896,6 +944,10 @@ class MultitoneDetector final : public Detector {
   std::unique_ptr<RealFft> fft_;
   std::vector<std::vector<cf>> spec_c_, spec_s_;
   std::vector<float> fine_s_, fine_c_, mt_s_, mt_c_, win_y_, bp_buf_, paths_buf_;
+  std::vector<float> ph_s_, ph_c_;            // mt_s_/mt_c_ by phase (fit_energy)
+  std::vector<double> ph_ss_, ph_cc_, ph_sc_;  // ... their energies' prefix sums per phase
+  std::array<std::size_t, kOs> ph_len_{};
+  std::size_t ph_stride_ = 0;
   dsp::OnsetPathsFit paths_;
   dsp::OnsetPathsFit::Options paths_opt_;
   std::size_t paths_len_ = 0;
@@ -965,6 +1017,9 @@ const ParamSchema& schema() {
       float_param("path_search_s", 0.0045, 0.0, 0.02, "s",
                   "The first path is searched up to this long before the single-path estimate (floor/ceiling image delays)."),
       float_param("path_window_s", 0.005, 0.0005, 0.02, "s", "Multipath fit window after the single-path estimate."),
+      float_param("path_scan_samples", 2.0, 0.5, 16.0, "samples",
+                  "Step of the multipath fit's scan for a new path (each found path is then refined to 1/8 sample). "
+                  "4 is ~18 % faster with the same detection figures on the simulator (docs/spyloc.md)."),
       float_param("path_threshold_db", 16.0, 3.0, 40.0, "dB",
                   "A path of the multipath fit must explain this much over the in-band noise power (per sample)."),
       bool_param("doppler", true,
