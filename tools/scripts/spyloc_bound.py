@@ -3,7 +3,7 @@
 scene's own noise and its early echoes: the bound behind issue 16's "first path within 1 sample for
 90 % of LoS beeps".
 
-usage: spyloc_bound.py SCENE_DIR... [--window-ms W] [--pre-ms P] [--image-order K] [--json]
+usage: spyloc_bound.py SCENE_DIR... [--window-ms W] [--pre-ms P] [--noise-ms N] [--image-order K] [--json]
                        [--phase known|free] [--per-beep] [--min-bound F] [--max-bound F]
 
 Why: the multitone beep (tones 18-20.25 kHz, 60 ms, 5 ms raised-cosine fades) is timed to a fraction
@@ -123,6 +123,8 @@ def scene_bound(scene_dir, args):
     scene, fs, c, room = arrivals.read_scene(scene_dir)
     if room is None:
         sys.exit(f'{scene_dir}/scene.yaml: environment.room: expected the room size [x, y, z] (m)')
+    if not isinstance(scene.get('truth'), dict) or 'clocks' not in scene['truth']:
+        sys.exit(f'{scene_dir}/scene.yaml: truth.clocks: expected the ground truth (the bound needs the true arrivals)')
     dev = scene['devices'][0]
     device = dev['id']
     mic_body = np.array(dev['mics'][0], float)
@@ -130,12 +132,13 @@ def scene_bound(scene_dir, args):
     traj = arrivals.load_trajectories(scene_dir, scene)
     beeps = arrivals.beeps_from_extra(scene_dir) or arrivals.beeps_from_geometry(scene_dir, scene, device)
     emitters = {e['id']: e for e in scene.get('emitters', [])}
-    rate, audio = wavfile.read(os.path.join(scene_dir, dev['audio']), mmap=True)
-    audio = np.asarray(audio[:, 0] if audio.ndim > 1 else audio, float)
-    scale = 32768.0 if np.max(np.abs(audio[: int(fs)])) > 2.0 else 1.0  # int16 samples or floats
+    _, raw = wavfile.read(os.path.join(scene_dir, dev['audio']), mmap=True)
+    # integer PCM to full scale 1 (scipy gives 24-bit data left-justified in int32); floats as they are
+    scale = float(np.iinfo(raw.dtype).max) + 1.0 if np.issubdtype(raw.dtype, np.integer) else 1.0
+    audio = np.asarray(raw[:, 0] if raw.ndim > 1 else raw, float)
     sos = butter(4, [17500.0, 20750.0], btype='bandpass', fs=fs, output='sos')
     band_fraction = (20750.0 - 17500.0) / (fs / 2.0)
-    templates, side = {}, {}
+    side = {}  # per beacon: its template's carrier period (samples)
     rows = []
     pre = int(round(args.pre_ms * 1e-3 * fs))
     win = int(round(args.window_ms * 1e-3 * fs))
@@ -150,9 +153,8 @@ def scene_bound(scene_dir, args):
         spec = next((x for x in e['emits'] if x.get('type') == 'multitone'), None)
         if spec is None:
             continue
-        if src_id not in templates:
-            templates[src_id] = Template(spec, fs)
-            side[src_id] = templates[src_id].side_peak()
+        if src_id not in side:
+            side[src_id] = Template(spec, fs).side_peak()
         T = side[src_id]
         tau0 = b['first']
         n0 = int(math.floor(tau0)) - pre
@@ -161,18 +163,18 @@ def scene_bound(scene_dir, args):
             continue
         # the geometry at the arrival: receiver from the truth (true time from the local clock)
         t_true = (tau0 / fs - float(ck['offset_s'])) / (1.0 + float(ck['skew_ppm']) * 1e-6)
-        pm, qm = arrivals.pose_at(traj, device, t_true)
-        rcv = pm + arrivals.quat_rot(qm, mic_body)
+        def mic_at(t):
+            p, q = arrivals.pose_at(traj, device, t)
+            return p + arrivals.quat_rot(q, mic_body)
+
+        rcv = mic_at(t_true)
         if 'anchor' in e and e['anchor'] and 'position' in e['anchor']:
             src = np.array(e['anchor']['position'], float)
         else:
             src, _ = arrivals.pose_at(traj, src_id, t_true - 0.02)
         d0 = float(np.linalg.norm(rcv - src))
         # the walker's radial speed: the received beep is time-scaled by 1 - rdot/c
-        pa, qa = arrivals.pose_at(traj, device, t_true + 0.02)
-        pb, qb = arrivals.pose_at(traj, device, t_true - 0.02)
-        rdot = (np.linalg.norm(pa + arrivals.quat_rot(qa, mic_body) - src)
-                - np.linalg.norm(pb + arrivals.quat_rot(qb, mic_body) - src)) / 0.04
+        rdot = (np.linalg.norm(mic_at(t_true + 0.02) - src) - np.linalg.norm(mic_at(t_true - 0.02) - src)) / 0.04
         tpl = Template(spec, fs, 1.0 - rdot / c)
         n = np.arange(n0, n1, dtype=float)
         cols = []

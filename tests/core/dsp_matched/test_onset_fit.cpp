@@ -1,6 +1,7 @@
 // dsp::OnsetPathsFit on exact multipath onsets: the first of three paths (the two later ones 58 and
 // 72 samples after it, 0.7 and 0.6 as strong) timed from any starting estimate; the in-band noise
-// power of white noise; a weak first path below the threshold is not invented; the Doppler time scale.
+// power of white noise; a weak first path below the threshold is not invented; the Doppler time scale;
+// the carrier cycle chosen with the first path's phase known.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -60,6 +61,13 @@ std::vector<float> paths(std::size_t n, std::initializer_list<std::pair<double, 
   return y;
 }
 
+// y plus white noise of standard deviation sigma.
+std::vector<float> plus_noise(std::vector<float> y, float sigma, std::mt19937& rng) {
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  for (float& v : y) v += sigma * g(rng);
+  return y;
+}
+
 TEST(OnsetPathsFit, FirstOfThreePathsFromAnyStart) {
   Templates t;
   OnsetPathsFit fit;
@@ -97,11 +105,9 @@ TEST(OnsetPathsFit, NoEarlierPathInventedInNoise) {
   OnsetPathsFit fit;
   fit.reserve(600);
   std::mt19937 rng(5);
-  std::normal_distribution<float> g(0.0f, 0.05f);
   int ok = 0;
   for (int k = 0; k < 20; ++k) {
-    std::vector<float> y = paths(462, {{240.0, 1.0}, {300.0, 0.7}});
-    for (float& v : y) v += g(rng);
+    const std::vector<float> y = plus_noise(paths(462, {{240.0, 1.0}, {300.0, 0.7}}), 0.05f, rng);
     const OnsetPathsFit::Result r = fit.fit(y.data(), y.size(), t.c.data(), t.s.data(), t.c.size(), 240.0, 0.05 * 0.05, options());
     ok += std::abs(r.first - 240.0) <= 1.0;
   }
@@ -121,12 +127,6 @@ TEST(OnsetPathsFit, DopplerTimeScale) {
   EXPECT_NEAR(r.first, 242.3, 0.1);
 }
 
-}  // namespace
-}  // namespace locus::dsp
-
-namespace locus::dsp {
-namespace {
-
 // The carrier cycle of the first path (issue 16: a one-period slip is a 2.3-sample error). In noise
 // with two images 48 and 67 samples behind the direct path (spyloc-104's far beeps) and the
 // detector's model tolerance (2 % of the window: the fit keeps two of the three paths), the free-phase
@@ -138,15 +138,13 @@ TEST(OnsetPathsFit, KnownPhaseChoosesTheCarrierCycle) {
   OnsetPathsFit fit;
   fit.reserve(600);
   std::mt19937 rng(11);
-  std::normal_distribution<float> g(0.0f, 1.0f);
   const double first = 241.6;
   const std::vector<float> clean = paths(462, {{first, 1.0}, {first + 48.4, 0.7}, {first + 67.7, 0.6}});
   const float sigma = 0.2f;
   int within_envelope = 0, within_known = 0;
   const int trials = 60;
   for (int k = 0; k < trials; ++k) {
-    std::vector<float> y = clean;
-    for (float& v : y) v += sigma * g(rng);
+    const std::vector<float> y = plus_noise(clean, sigma, rng);
     OnsetPathsFit::Options o = options();
     o.tolerance = 0.02;
     o.known_phase_cycle = false;
